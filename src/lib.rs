@@ -21,3 +21,4 @@ pub use rootfuse_attitude as attitude;
 pub use rootfuse_attitude::{Quat, Vec3};
 pub use rootfuse_lane as lane;
 pub use rootfuse_lane::{Lane, Mask, Mat};
+pub use rootfuse_lsq as lsq;

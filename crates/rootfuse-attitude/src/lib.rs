@@ -22,8 +22,14 @@ extern crate std;
 
 mod interop;
 pub mod quat;
+#[cfg(feature = "std")]
+pub mod recording;
+pub mod sample;
 pub mod vec3;
 
 pub use quat::Quat;
+#[cfg(feature = "std")]
+pub use recording::Recording;
+pub use sample::ImuSample;
 pub use rootfuse_lane::{Lane, Mask, Mat};
 pub use vec3::Vec3;

@@ -1,0 +1,1 @@
+//! Dense weighted least squares on faer.

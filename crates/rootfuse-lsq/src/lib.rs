@@ -1,0 +1,12 @@
+//! Least squares and recursive least squares over [`Lane`](rootfuse_lane::Lane).
+//!
+//! - [`rls`]: the recursive forms (const-generic size, generic over `T: Lane`, no allocation
+//!   per update), all solving the same exponentially weighted problem.
+//! - `batch` (with `std`): dense weighted least squares on `faer` (QR, pivoted QR/SVD, normal
+//!   equations as a comparison method).
+#![cfg_attr(not(feature = "std"), no_std)]
+#![warn(missing_docs)]
+
+#[cfg(feature = "std")]
+pub mod batch;
+pub mod rls;
