@@ -36,5 +36,22 @@ fn gyro_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, gyro_step);
+/// The simulator: one channel, 10 s at 200 Hz, per preset.
+fn simulator(c: &mut Criterion) {
+    let mut group = c.benchmark_group("sim/10s_200Hz");
+    group.sample_size(20);
+    group.throughput(Throughput::Elements(2000));
+    for name in ["static", "slow-rotation", "fast-rotation"] {
+        group.bench_function(name, |b| {
+            let mut seed = 0;
+            b.iter(|| {
+                seed += 1;
+                rootfuse::attitude::sim::scenario(name, seed, 10.0, 200.0)
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, gyro_step, simulator);
 criterion_main!(benches);

@@ -2,6 +2,8 @@
 // Lane-by-lane loops index several arrays with the same lane number; that reads best as `i`.
 #![allow(clippy::needless_range_loop)]
 mod common;
+mod data_io;
 mod lane;
 mod mat;
 mod quat;
+mod sim;

@@ -21,15 +21,21 @@
 extern crate std;
 
 mod interop;
+#[cfg(feature = "std")]
+pub mod io;
+#[cfg(feature = "std")]
+pub mod metrics;
 pub mod quat;
 #[cfg(feature = "std")]
 pub mod recording;
 pub mod sample;
+#[cfg(feature = "std")]
+pub mod sim;
 pub mod vec3;
 
 pub use quat::Quat;
 #[cfg(feature = "std")]
 pub use recording::Recording;
-pub use sample::ImuSample;
 pub use rootfuse_lane::{Lane, Mask, Mat};
+pub use sample::ImuSample;
 pub use vec3::Vec3;

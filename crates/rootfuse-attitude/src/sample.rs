@@ -29,6 +29,10 @@ impl<T: Lane> ImuSample<T> {
     #[inline]
     pub fn six_d(gyr: Vec3<T>, acc: Vec3<T>) -> Self {
         let nan = T::from_f64(f64::NAN);
-        Self { gyr, acc, mag: Vec3::new(nan, nan, nan) }
+        Self {
+            gyr,
+            acc,
+            mag: Vec3::new(nan, nan, nan),
+        }
     }
 }

@@ -1,0 +1,780 @@
+//! Reading and writing recordings as CSV (the `broad_csv` format of `../shared/broad_csv`).
+//!
+//! # Format read
+//! One header line, comma separated, `.` decimal point, no quoting needed. Columns are found by
+//! name, so their order is free:
+//! - required: `t` (s, strictly increasing), `gx,gy,gz` (rad/s, sensor frame),
+//!   `ax,ay,az` (m/s², specific force, sensor frame);
+//! - optional: `mx,my,mz` (magnetometer, sensor frame; absent = a 6D recording),
+//!   `qw,qx,qy,qz` (ground truth, sensor to earth, ENU; `NaN` where unknown),
+//!   `use` (`0`/`1`, samples that count for error evaluation);
+//! - any other column is ignored.
+//!
+//! A group (`mx,my,mz` or `qw,qx,qy,qz`) is all or nothing: a partial group is an error, since
+//! a half-present magnetometer is a broken file rather than a 6D one.
+//!
+//! # Errors
+//! Every problem is a [`ReadError`] whose message names the file, the 1-based line and, where
+//! one cell is at fault, the column by name and 1-based index, so a user can go straight to it.
+//! Nothing in here panics on data.
+//!
+//! # Writing
+//! [`write_estimates`] and [`write_recording`] write to a temporary file beside the target and
+//! rename it into place, so a reader never sees a half-written file (rename is atomic within a
+//! file system).
+
+use crate::quat::Quat;
+use crate::recording::Recording;
+use crate::vec3::Vec3;
+use std::borrow::ToOwned;
+use std::fmt::Write as _;
+use std::format;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::string::{String, ToString};
+use std::vec;
+use std::vec::Vec;
+
+/// Why a CSV file could not be read. Lines and column indices are 1-based; the header is
+/// line 1.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file could not be opened or read (missing file, permissions, I/O failure).
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        /// The file.
+        file: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The CSV layer failed (for example invalid UTF-8 in the header).
+    #[error("{file}: line {line}: malformed CSV: {message}")]
+    Csv {
+        /// The file.
+        file: PathBuf,
+        /// Line where it happened (0 when unknown).
+        line: u64,
+        /// The CSV layer's description.
+        message: String,
+    },
+    /// The file has no header line.
+    #[error("{file}: line 1: empty file (no header)")]
+    Empty {
+        /// The file.
+        file: PathBuf,
+    },
+    /// A required column (or one of a column group that is partly present) is missing.
+    #[error("{file}: line 1: missing required column `{column}`")]
+    MissingColumn {
+        /// The file.
+        file: PathBuf,
+        /// The missing column's name.
+        column: &'static str,
+    },
+    /// A column name appears twice, so which one to use is ambiguous.
+    #[error("{file}: line 1, column `{column}` (#{index}): duplicate column name")]
+    DuplicateColumn {
+        /// The file.
+        file: PathBuf,
+        /// The repeated name.
+        column: String,
+        /// 1-based index of the second occurrence.
+        index: usize,
+    },
+    /// A data row has a different number of fields than the header.
+    #[error("{file}: line {line}: expected {expected} fields (as in the header), found {found}")]
+    FieldCount {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Fields in the header.
+        expected: usize,
+        /// Fields in this row.
+        found: usize,
+    },
+    /// A cell is not a number.
+    #[error("{file}: line {line}, column `{column}` (#{index}): `{text}` is not a number")]
+    NotNumeric {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name.
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The cell as written (lossy UTF-8).
+        text: String,
+    },
+    /// A time stamp is NaN or infinite.
+    #[error("{file}: line {line}, column `{column}` (#{index}): time {value} is not finite")]
+    NonFiniteTime {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name (`t`).
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The value read.
+        value: f64,
+    },
+    /// A time stamp does not exceed the previous one.
+    #[error(
+        "{file}: line {line}, column `{column}` (#{index}): time {value} does not increase (previous {previous})"
+    )]
+    NonMonotonicTime {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name (`t`).
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// This sample's time, s.
+        value: f64,
+        /// The previous sample's time, s.
+        previous: f64,
+    },
+    /// An IMU reading (gyroscope, accelerometer, magnetometer) is NaN or infinite.
+    ///
+    /// Missing IMU values are not part of the format (only the ground truth may be unknown);
+    /// a filter must not be fed a silently repaired value.
+    #[error("{file}: line {line}, column `{column}` (#{index}): IMU value {value} is not finite")]
+    NonFiniteImu {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name.
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The value read.
+        value: f64,
+    },
+    /// A ground-truth component is infinite (NaN is allowed and means "unknown").
+    #[error(
+        "{file}: line {line}, column `{column}` (#{index}): truth value {value} is infinite (use NaN for unknown)"
+    )]
+    InfiniteTruth {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name.
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The value read.
+        value: f64,
+    },
+    /// The `use` cell is neither `0` nor `1`.
+    #[error("{file}: line {line}, column `{column}` (#{index}): `{text}` is not 0 or 1")]
+    BadUse {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name (`use`).
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The cell as written (lossy UTF-8).
+        text: String,
+    },
+}
+
+/// Why a CSV file could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// Creating, writing or renaming failed.
+    #[error("{file}: cannot write: {source}")]
+    Io {
+        /// The target file.
+        file: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A column has a different length than the time column.
+    #[error("{file}: column `{column}` has {found} values, the time column has {expected}")]
+    Length {
+        /// The target file.
+        file: PathBuf,
+        /// The column.
+        column: String,
+        /// Number of time stamps.
+        expected: usize,
+        /// Values in this column.
+        found: usize,
+    },
+    /// An extra column name is empty, repeats a name or contains a comma, quote or line break.
+    #[error("{file}: bad column name `{column}`")]
+    BadColumnName {
+        /// The target file.
+        file: PathBuf,
+        /// The name.
+        column: String,
+    },
+}
+
+/// One row of a dataset's `index.csv` (`trial,group,fs_hz,n_samples,n_use,duration_s`).
+///
+/// Only `trial` is required; the other columns are `None` when absent.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IndexEntry {
+    /// Trial name = file stem of `<trial>.csv`.
+    pub trial: String,
+    /// Group label (`undisturbed`, `disturbed`).
+    pub group: Option<String>,
+    /// Sampling rate, Hz.
+    pub fs_hz: Option<f64>,
+    /// Number of samples (data rows).
+    pub n_samples: Option<usize>,
+    /// Number of rows with `use = 1`.
+    pub n_use: Option<usize>,
+    /// Duration, s.
+    pub duration_s: Option<f64>,
+}
+
+// Column groups, in the order their values are stored.
+const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
+const MAG: [&str; 3] = ["mx", "my", "mz"];
+const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
+
+/// Reads one CSV recording from a file; the recording is named after the file stem.
+///
+/// See the [module documentation](self) for the format and the errors.
+pub fn read_csv(path: impl AsRef<Path>) -> Result<Recording, ReadError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|source| ReadError::Io {
+        file: path.to_owned(),
+        source,
+    })?;
+    // The csv reader buffers internally; a large buffer keeps a 9 MB file to a few reads.
+    let reader = std::io::BufReader::with_capacity(1 << 16, file);
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    read_csv_from(reader, path, &name)
+}
+
+/// Reads one CSV recording from any reader; `file` is only used in error messages and `name`
+/// becomes [`Recording::name`].
+pub fn read_csv_from<R: std::io::Read>(
+    reader: R,
+    file: impl AsRef<Path>,
+    name: &str,
+) -> Result<Recording, ReadError> {
+    let file = file.as_ref();
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        // Field counts are checked here so that the error can name the line.
+        .flexible(true)
+        .buffer_capacity(1 << 16)
+        .from_reader(reader);
+    let mut record = csv::ByteRecord::new();
+
+    // Header.
+    let got = rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(file, e))?;
+    if !got {
+        return Err(ReadError::Empty {
+            file: file.to_owned(),
+        });
+    }
+    let mut header: Vec<String> = record
+        .iter()
+        .map(|f| String::from_utf8_lossy(trim(f)).into_owned())
+        .collect();
+    // Spreadsheet programs like to start UTF-8 files with a byte-order mark.
+    if let Some(first) = header.first_mut()
+        && let Some(rest) = first.strip_prefix('\u{feff}')
+    {
+        *first = rest.to_string();
+    }
+    let layout = Layout::from_header(file, &header)?;
+    let n_fields = header.len();
+
+    let mut rec = Recording {
+        name: name.to_string(),
+        ..Recording::default()
+    };
+    let mut mag = layout.mag.map(|_| Vec::new());
+    let mut truth = layout.quat.map(|_| Vec::new());
+    let mut use_mask = layout.use_col.map(|_| Vec::new());
+    let mut previous_t = f64::NEG_INFINITY;
+
+    loop {
+        let got = rdr
+            .read_byte_record(&mut record)
+            .map_err(|e| csv_error(file, e))?;
+        if !got {
+            break;
+        }
+        let line = record.position().map_or(0, |p| p.line());
+        // A blank line at the end of a file (or an editor's trailing newline) is not a row.
+        if record.len() == 1 && trim(&record[0]).is_empty() {
+            continue;
+        }
+        if record.len() != n_fields {
+            return Err(ReadError::FieldCount {
+                file: file.to_owned(),
+                line,
+                expected: n_fields,
+                found: record.len(),
+            });
+        }
+        let cell = |col: usize| -> Result<f64, ReadError> {
+            parse_f64(&record[col]).ok_or_else(|| ReadError::NotNumeric {
+                file: file.to_owned(),
+                line,
+                column: header[col].clone(),
+                index: col + 1,
+                text: String::from_utf8_lossy(&record[col]).into_owned(),
+            })
+        };
+        let imu = |col: usize| -> Result<f64, ReadError> {
+            let v = cell(col)?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(ReadError::NonFiniteImu {
+                    file: file.to_owned(),
+                    line,
+                    column: header[col].clone(),
+                    index: col + 1,
+                    value: v,
+                })
+            }
+        };
+
+        let tc = layout.required[0];
+        let t = cell(tc)?;
+        if !t.is_finite() {
+            return Err(ReadError::NonFiniteTime {
+                file: file.to_owned(),
+                line,
+                column: header[tc].clone(),
+                index: tc + 1,
+                value: t,
+            });
+        }
+        if t <= previous_t {
+            return Err(ReadError::NonMonotonicTime {
+                file: file.to_owned(),
+                line,
+                column: header[tc].clone(),
+                index: tc + 1,
+                value: t,
+                previous: previous_t,
+            });
+        }
+        previous_t = t;
+        let r = &layout.required;
+        rec.t.push(t);
+        rec.gyr.push(Vec3::new(imu(r[1])?, imu(r[2])?, imu(r[3])?));
+        rec.acc.push(Vec3::new(imu(r[4])?, imu(r[5])?, imu(r[6])?));
+        if let (Some(cols), Some(out)) = (&layout.mag, &mut mag) {
+            out.push(Vec3::new(imu(cols[0])?, imu(cols[1])?, imu(cols[2])?));
+        }
+        if let (Some(cols), Some(out)) = (&layout.quat, &mut truth) {
+            let mut q = [0.0; 4];
+            for (k, &c) in cols.iter().enumerate() {
+                let v = cell(c)?;
+                if v.is_infinite() {
+                    return Err(ReadError::InfiniteTruth {
+                        file: file.to_owned(),
+                        line,
+                        column: header[c].clone(),
+                        index: c + 1,
+                        value: v,
+                    });
+                }
+                q[k] = v;
+            }
+            // A partly known quaternion is no orientation: unknown as a whole.
+            if q.iter().any(|v| v.is_nan()) {
+                q = [f64::NAN; 4];
+            }
+            out.push(Quat::new(q[0], q[1], q[2], q[3]));
+        }
+        if let (Some(c), Some(out)) = (layout.use_col, &mut use_mask) {
+            let f = trim(&record[c]);
+            let u = match f {
+                b"1" => true,
+                b"0" => false,
+                _ => {
+                    return Err(ReadError::BadUse {
+                        file: file.to_owned(),
+                        line,
+                        column: header[c].clone(),
+                        index: c + 1,
+                        text: String::from_utf8_lossy(&record[c]).into_owned(),
+                    });
+                }
+            };
+            out.push(u);
+        }
+    }
+    rec.mag = mag;
+    rec.truth = truth;
+    rec.use_mask = use_mask;
+    Ok(rec)
+}
+
+/// Where each known column is (0-based field indices).
+struct Layout {
+    required: [usize; 7],
+    mag: Option<[usize; 3]>,
+    quat: Option<[usize; 4]>,
+    use_col: Option<usize>,
+}
+
+impl Layout {
+    fn from_header(file: &Path, header: &[String]) -> Result<Self, ReadError> {
+        // Duplicate names would make "the" column ambiguous; extra columns may repeat freely
+        // only if we never look at them, but a clear rule is simpler: no duplicates at all.
+        for (i, h) in header.iter().enumerate() {
+            if header[..i].contains(h) {
+                return Err(ReadError::DuplicateColumn {
+                    file: file.to_owned(),
+                    column: h.clone(),
+                    index: i + 1,
+                });
+            }
+        }
+        let find = |name: &str| header.iter().position(|h| h == name);
+        let all = |names: &[&'static str]| -> Result<Option<Vec<usize>>, ReadError> {
+            let found: Vec<Option<usize>> = names.iter().map(|n| find(n)).collect();
+            if found.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            match found.iter().position(Option::is_none) {
+                Some(k) => Err(ReadError::MissingColumn {
+                    file: file.to_owned(),
+                    column: names[k],
+                }),
+                None => Ok(Some(found.into_iter().flatten().collect())),
+            }
+        };
+        let mut required = [0; 7];
+        for (slot, name) in required.iter_mut().zip(REQUIRED) {
+            *slot = find(name).ok_or_else(|| ReadError::MissingColumn {
+                file: file.to_owned(),
+                column: name,
+            })?;
+        }
+        let mag = all(&MAG)?.map(|v| [v[0], v[1], v[2]]);
+        let quat = all(&QUAT)?.map(|v| [v[0], v[1], v[2], v[3]]);
+        Ok(Self {
+            required,
+            mag,
+            quat,
+            use_col: find("use"),
+        })
+    }
+}
+
+fn csv_error(file: &Path, e: csv::Error) -> ReadError {
+    let line = e.position().map_or(0, |p| p.line());
+    match e.into_kind() {
+        csv::ErrorKind::Io(source) => ReadError::Io {
+            file: file.to_owned(),
+            source,
+        },
+        kind => ReadError::Csv {
+            file: file.to_owned(),
+            line,
+            message: format!("{kind:?}"),
+        },
+    }
+}
+
+/// ASCII whitespace trimmed from both ends (files written by hand or by `%8.3f`).
+fn trim(mut f: &[u8]) -> &[u8] {
+    while let [first, rest @ ..] = f {
+        if first.is_ascii_whitespace() {
+            f = rest;
+        } else {
+            break;
+        }
+    }
+    while let [rest @ .., last] = f {
+        if last.is_ascii_whitespace() {
+            f = rest;
+        } else {
+            break;
+        }
+    }
+    f
+}
+
+/// Parses a decimal number; `NaN`, `inf` are accepted in any case (std's grammar).
+fn parse_f64(f: &[u8]) -> Option<f64> {
+    let s = std::str::from_utf8(trim(f)).ok()?;
+    s.parse::<f64>().ok()
+}
+
+/// Reads a dataset's `index.csv` (header-driven; only `trial` is required).
+pub fn read_index(path: impl AsRef<Path>) -> Result<Vec<IndexEntry>, ReadError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|source| ReadError::Io {
+        file: path.to_owned(),
+        source,
+    })?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(std::io::BufReader::new(file));
+    let mut record = csv::ByteRecord::new();
+    if !rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(path, e))?
+    {
+        return Err(ReadError::Empty {
+            file: path.to_owned(),
+        });
+    }
+    let header: Vec<String> = record
+        .iter()
+        .map(|f| String::from_utf8_lossy(trim(f)).into_owned())
+        .collect();
+    let find = |name: &str| header.iter().position(|h| h == name);
+    let trial = find("trial").ok_or_else(|| ReadError::MissingColumn {
+        file: path.to_owned(),
+        column: "trial",
+    })?;
+    let (group, fs, ns, nu, dur) = (
+        find("group"),
+        find("fs_hz"),
+        find("n_samples"),
+        find("n_use"),
+        find("duration_s"),
+    );
+    let mut out = Vec::new();
+    while rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(path, e))?
+    {
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() == 1 && trim(&record[0]).is_empty() {
+            continue;
+        }
+        if record.len() != header.len() {
+            return Err(ReadError::FieldCount {
+                file: path.to_owned(),
+                line,
+                expected: header.len(),
+                found: record.len(),
+            });
+        }
+        let text = |c: usize| String::from_utf8_lossy(trim(&record[c])).into_owned();
+        let not_numeric = |c: usize| ReadError::NotNumeric {
+            file: path.to_owned(),
+            line,
+            column: header[c].clone(),
+            index: c + 1,
+            text: text(c),
+        };
+        let float = |c: Option<usize>| -> Result<Option<f64>, ReadError> {
+            c.map(|c| parse_f64(&record[c]).ok_or_else(|| not_numeric(c)))
+                .transpose()
+        };
+        let count = |c: Option<usize>| -> Result<Option<usize>, ReadError> {
+            c.map(|c| text(c).parse::<usize>().map_err(|_| not_numeric(c)))
+                .transpose()
+        };
+        out.push(IndexEntry {
+            trial: text(trial),
+            group: group.map(text),
+            fs_hz: float(fs)?,
+            n_samples: count(ns)?,
+            n_use: count(nu)?,
+            duration_s: float(dur)?,
+        });
+    }
+    Ok(out)
+}
+
+/// The recording files of a folder: the trials listed in its `index.csv` (as
+/// `<trial>.csv`, in index order) when there is one, otherwise every `*.csv` except
+/// `index.csv`, sorted by name. Other files (README, …) are ignored.
+pub fn list_dir(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, ReadError> {
+    let dir = dir.as_ref();
+    let index = dir.join("index.csv");
+    if index.is_file() {
+        return Ok(read_index(&index)?
+            .into_iter()
+            .map(|e| dir.join(format!("{}.csv", e.trial)))
+            .collect());
+    }
+    let io = |source| ReadError::Io {
+        file: dir.to_owned(),
+        source,
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let is_csv = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        let is_index = path.file_name().is_some_and(|n| n == "index.csv");
+        if is_csv && !is_index && path.is_file() {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Reads every recording of a folder (see [`list_dir`] for which files), stopping at the
+/// first error.
+pub fn read_dir(dir: impl AsRef<Path>) -> Result<Vec<Recording>, ReadError> {
+    list_dir(dir)?.iter().map(read_csv).collect()
+}
+
+/// Writes estimates as CSV: `t,qw,qx,qy,qz` followed by the `extra` columns (name, values),
+/// atomically (temporary file, then rename).
+///
+/// Numbers are written in Rust's shortest round-trip form, so reading them back gives the same
+/// `f64` bits. `q` must have one quaternion per time stamp.
+pub fn write_estimates(
+    path: impl AsRef<Path>,
+    t: &[f64],
+    q: &[Quat<f64>],
+    extra: &[(&str, &[f64])],
+) -> Result<(), WriteError> {
+    let path = path.as_ref();
+    check_len(path, "qw..qz", t.len(), q.len())?;
+    let mut names: Vec<&str> = vec!["t", "qw", "qx", "qy", "qz"];
+    for (name, values) in extra {
+        check_name(path, name, &names)?;
+        check_len(path, name, t.len(), values.len())?;
+        names.push(name);
+    }
+    write_atomic(path, &names, t.len(), |i, row| {
+        let qi = q[i];
+        push_all(row, &[t[i], qi.w, qi.x, qi.y, qi.z]);
+        for (_, values) in extra {
+            push_all(row, &[values[i]]);
+        }
+    })
+}
+
+/// Writes a whole recording in the format [`read_csv`] reads: `t`, gyroscope, accelerometer,
+/// then magnetometer, truth and `use` where present; atomically.
+pub fn write_recording(path: impl AsRef<Path>, rec: &Recording) -> Result<(), WriteError> {
+    let path = path.as_ref();
+    let n = rec.t.len();
+    check_len(path, "gx..gz", n, rec.gyr.len())?;
+    check_len(path, "ax..az", n, rec.acc.len())?;
+    let mut names: Vec<&str> = vec!["t", "gx", "gy", "gz", "ax", "ay", "az"];
+    if let Some(m) = &rec.mag {
+        check_len(path, "mx..mz", n, m.len())?;
+        names.extend(MAG);
+    }
+    if let Some(q) = &rec.truth {
+        check_len(path, "qw..qz", n, q.len())?;
+        names.extend(QUAT);
+    }
+    if let Some(u) = &rec.use_mask {
+        check_len(path, "use", n, u.len())?;
+        names.push("use");
+    }
+    write_atomic(path, &names, n, |i, row| {
+        let (g, a) = (rec.gyr[i], rec.acc[i]);
+        push_all(row, &[rec.t[i], g.x, g.y, g.z, a.x, a.y, a.z]);
+        if let Some(m) = &rec.mag {
+            push_all(row, &[m[i].x, m[i].y, m[i].z]);
+        }
+        if let Some(q) = &rec.truth {
+            push_all(row, &[q[i].w, q[i].x, q[i].y, q[i].z]);
+        }
+        if let Some(u) = &rec.use_mask {
+            row.push_str(if u[i] { ",1" } else { ",0" });
+        }
+    })
+}
+
+fn check_len(file: &Path, column: &str, expected: usize, found: usize) -> Result<(), WriteError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(WriteError::Length {
+            file: file.to_owned(),
+            column: column.to_string(),
+            expected,
+            found,
+        })
+    }
+}
+
+fn check_name(file: &Path, name: &str, taken: &[&str]) -> Result<(), WriteError> {
+    let bad = name.is_empty()
+        || taken.contains(&name)
+        || name.contains([',', '"', '\n', '\r'])
+        || name.trim() != name;
+    if bad {
+        Err(WriteError::BadColumnName {
+            file: file.to_owned(),
+            column: name.to_string(),
+        })
+    } else {
+        Ok(())
+    }
+}
+
+/// Appends `,v` for each value (the leading comma is stripped per row by the caller).
+fn push_all(row: &mut String, values: &[f64]) {
+    for v in values {
+        // `{}` on f64 is the shortest string that parses back to the same bits; NaN is "NaN".
+        let _ = write!(row, ",{v}");
+    }
+}
+
+/// Writes header + rows to `<path>.tmp.<pid>` and renames it to `path`.
+fn write_atomic(
+    path: &Path,
+    names: &[&str],
+    n: usize,
+    mut fill: impl FnMut(usize, &mut String),
+) -> Result<(), WriteError> {
+    let io = |source| WriteError::Io {
+        file: path.to_owned(),
+        source,
+    };
+    let mut tmp_name = path.file_name().unwrap_or_default().to_owned();
+    tmp_name.push(format!(".tmp.{}", std::process::id()));
+    let tmp = path.with_file_name(tmp_name);
+    let result = (|| -> Result<(), std::io::Error> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
+        w.write_all(names.join(",").as_bytes())?;
+        w.write_all(b"\n")?;
+        let mut row = String::with_capacity(256);
+        for i in 0..n {
+            row.clear();
+            fill(i, &mut row);
+            // Every field was written with a leading comma.
+            w.write_all(&row.as_bytes()[1.min(row.len())..])?;
+            w.write_all(b"\n")?;
+        }
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        // Data on disk before the rename makes it visible: no empty file after a crash.
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
+    Ok(())
+}

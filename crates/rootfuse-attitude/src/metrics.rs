@@ -1,0 +1,275 @@
+//! The BROAD orientation error metrics (`../shared/broad_csv/README.md`), exactly as defined
+//! there; every evaluation in this project uses these.
+//!
+//! Per sample, with estimate `q_est` and reference `q_ref` (both sensor to earth, ENU):
+//! `e = q_est ⊗ conj(q_ref)` (the error expressed in the earth frame), then
+//! - total `= 2·acos(|e_w|)`,
+//! - heading `= 2·atan(|e_z / e_w|)`,
+//! - inclination `= 2·acos(sqrt(e_w² + e_z²))`.
+//!
+//! We evaluate the mathematically identical forms `2·atan2(|e_v|, |e_w|)`,
+//! `2·atan2(|e_z|, |e_w|)` and `2·atan2(sqrt(e_x² + e_y²), sqrt(e_w² + e_z²))`: they are exact
+//! for a unit `e`, accurate near zero error where `acos` loses half the digits, need no
+//! clamping, do not divide by `e_w = 0`, and are insensitive to a slightly non-unit estimate.
+//! All are invariant under `q → −q` of either quaternion.
+//!
+//! The RMSE runs over the samples with `use = 1` and finite truth, in degrees.
+//! - 9D: no alignment.
+//! - 6D (heading not observable): first remove the constant heading offset
+//!   `d = circular mean over those samples of 2·atan2(e_z, e_w)` by `q_est' = qz(−d) ⊗ q_est`,
+//!   `qz(a) = [cos(a/2), 0, 0, sin(a/2)]`. The inclination error is unchanged by this.
+//!
+//! A non-finite estimate on a counted sample makes the RMSE NaN (a diverged filter must not
+//! look good by having its bad samples skipped); it is left out of the 6D offset so that one
+//! bad sample does not also shift the heading of all others.
+
+use crate::quat::Quat;
+use crate::recording::Recording;
+use std::vec::Vec;
+
+/// How the estimate is aligned to the reference before errors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Alignment {
+    /// 9D (magnetometer-aided) estimate: compared as is.
+    NineD,
+    /// 6D estimate: the constant heading offset (circular mean) is removed first.
+    SixD,
+}
+
+/// Errors of one sample, rad.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleError {
+    /// Total rotation angle of the error, rad in `[0, π]`.
+    pub total: f64,
+    /// Heading (rotation about earth-z) part, rad in `[0, π]`.
+    pub heading: f64,
+    /// Inclination (rotation about a horizontal axis) part, rad in `[0, π]`.
+    pub inclination: f64,
+}
+
+/// RMSE over the counted samples, degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rmse {
+    /// Total error RMSE, degrees.
+    pub total: f64,
+    /// Heading error RMSE, degrees.
+    pub heading: f64,
+    /// Inclination error RMSE, degrees.
+    pub inclination: f64,
+    /// Number of samples counted (`use = 1` and finite truth).
+    pub n_used: usize,
+    /// Heading offset removed (6D), degrees in `(−180, 180]`; 0 for 9D.
+    pub heading_offset: f64,
+}
+
+/// Error over time for plots: one value per sample, degrees, NaN where the truth is unknown.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ErrorSeries {
+    /// Total error, degrees.
+    pub total: Vec<f64>,
+    /// Heading error, degrees.
+    pub heading: Vec<f64>,
+    /// Inclination error, degrees.
+    pub inclination: Vec<f64>,
+    /// Whether the sample counts for the RMSE (`use = 1` and finite truth).
+    pub used: Vec<bool>,
+    /// Heading offset removed (6D), degrees; 0 for 9D.
+    pub heading_offset: f64,
+}
+
+/// Why errors could not be computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MetricsError {
+    /// Estimate, truth and use mask differ in length.
+    #[error("length mismatch: {estimates} estimates, {truth} truth samples, {mask} use flags")]
+    Length {
+        /// Number of estimates.
+        estimates: usize,
+        /// Number of truth samples.
+        truth: usize,
+        /// Number of use flags.
+        mask: usize,
+    },
+    /// The recording has no ground truth.
+    #[error("the recording has no ground truth")]
+    NoTruth,
+    /// No sample has `use = 1` and finite truth.
+    #[error("no sample counts for evaluation (use = 1 with finite truth)")]
+    NoUsableSamples,
+}
+
+/// The error quaternion `e = q_est ⊗ conj(q_ref)` (earth frame).
+#[inline]
+pub fn error_quat(q_est: Quat<f64>, q_ref: Quat<f64>) -> Quat<f64> {
+    q_est * q_ref.conj()
+}
+
+/// The three BROAD errors of one error quaternion `e` (see the module docs), rad.
+#[inline]
+pub fn split_error(e: Quat<f64>) -> SampleError {
+    let (aw, az) = (e.w.abs(), e.z.abs());
+    let horiz = e.x.hypot(e.y);
+    let vec = horiz.hypot(az);
+    SampleError {
+        total: 2.0 * vec.atan2(aw),
+        heading: 2.0 * az.atan2(aw),
+        inclination: 2.0 * horiz.atan2(aw.hypot(az)),
+    }
+}
+
+/// The BROAD errors of one estimate against one reference, rad (no alignment).
+#[inline]
+pub fn sample_error(q_est: Quat<f64>, q_ref: Quat<f64>) -> SampleError {
+    split_error(error_quat(q_est, q_ref))
+}
+
+/// The heading angle of an error quaternion, `2·atan2(e_z, e_w)`, rad (defined modulo 2π;
+/// `e` and `−e` give angles 2π apart, i.e. the same direction).
+#[inline]
+pub fn error_heading(e: Quat<f64>) -> f64 {
+    2.0 * e.z.atan2(e.w)
+}
+
+fn counted(truth: &[Quat<f64>], mask: Option<&[bool]>, i: usize) -> bool {
+    let q = truth[i];
+    mask.is_none_or(|m| m[i])
+        && q.w.is_finite()
+        && q.x.is_finite()
+        && q.y.is_finite()
+        && q.z.is_finite()
+}
+
+fn check(
+    est: &[Quat<f64>],
+    truth: &[Quat<f64>],
+    mask: Option<&[bool]>,
+) -> Result<(), MetricsError> {
+    let m = mask.map_or(est.len(), <[bool]>::len);
+    if est.len() != truth.len() || m != est.len() {
+        return Err(MetricsError::Length {
+            estimates: est.len(),
+            truth: truth.len(),
+            mask: m,
+        });
+    }
+    Ok(())
+}
+
+/// The 6D heading offset `d` (rad, in `(−π, π]`): circular mean of `2·atan2(e_z, e_w)` over
+/// the counted samples with a finite estimate. `None` when there is no such sample or the
+/// mean direction is undefined (headings spread evenly around the circle).
+pub fn heading_offset(
+    est: &[Quat<f64>],
+    truth: &[Quat<f64>],
+    use_mask: Option<&[bool]>,
+) -> Result<Option<f64>, MetricsError> {
+    check(est, truth, use_mask)?;
+    let (mut s, mut c, mut n) = (0.0, 0.0, 0usize);
+    for i in 0..est.len() {
+        if !counted(truth, use_mask, i) {
+            continue;
+        }
+        let a = error_heading(error_quat(est[i], truth[i]));
+        if a.is_finite() {
+            s += a.sin();
+            c += a.cos();
+            n += 1;
+        }
+    }
+    // Relative threshold: a resultant this short has no meaningful direction.
+    if n == 0 || s.hypot(c) <= 1e-12 * n as f64 {
+        return Ok(None);
+    }
+    Ok(Some(s.atan2(c)))
+}
+
+/// Per-sample errors (degrees, NaN where the truth is unknown) after the alignment of `mode`.
+pub fn error_series(
+    est: &[Quat<f64>],
+    truth: &[Quat<f64>],
+    use_mask: Option<&[bool]>,
+    mode: Alignment,
+) -> Result<ErrorSeries, MetricsError> {
+    check(est, truth, use_mask)?;
+    let d = match mode {
+        Alignment::NineD => 0.0,
+        Alignment::SixD => heading_offset(est, truth, use_mask)?.unwrap_or(0.0),
+    };
+    let align = Quat::<f64>::from_heading(-d);
+    let n = est.len();
+    let mut out = ErrorSeries {
+        total: Vec::with_capacity(n),
+        heading: Vec::with_capacity(n),
+        inclination: Vec::with_capacity(n),
+        used: Vec::with_capacity(n),
+        heading_offset: d.to_degrees(),
+    };
+    for i in 0..n {
+        let used = counted(truth, use_mask, i);
+        let q = match mode {
+            Alignment::NineD => est[i],
+            Alignment::SixD => align * est[i],
+        };
+        let e = if truth[i].w.is_finite() {
+            sample_error(q, truth[i])
+        } else {
+            SampleError {
+                total: f64::NAN,
+                heading: f64::NAN,
+                inclination: f64::NAN,
+            }
+        };
+        out.total.push(e.total.to_degrees());
+        out.heading.push(e.heading.to_degrees());
+        out.inclination.push(e.inclination.to_degrees());
+        out.used.push(used);
+    }
+    Ok(out)
+}
+
+/// The BROAD RMSE (degrees) of estimates against truth over the samples with `use = 1`
+/// (all when `use_mask` is `None`) and finite truth.
+pub fn rmse(
+    est: &[Quat<f64>],
+    truth: &[Quat<f64>],
+    use_mask: Option<&[bool]>,
+    mode: Alignment,
+) -> Result<Rmse, MetricsError> {
+    let series = error_series(est, truth, use_mask, mode)?;
+    let (mut st, mut sh, mut si, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for i in 0..est.len() {
+        if series.used[i] {
+            st += series.total[i].powi(2);
+            sh += series.heading[i].powi(2);
+            si += series.inclination[i].powi(2);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return Err(MetricsError::NoUsableSamples);
+    }
+    let nf = n as f64;
+    Ok(Rmse {
+        total: (st / nf).sqrt(),
+        heading: (sh / nf).sqrt(),
+        inclination: (si / nf).sqrt(),
+        n_used: n,
+        heading_offset: series.heading_offset,
+    })
+}
+
+/// [`rmse`] of estimates against a recording's truth and use mask.
+pub fn evaluate(rec: &Recording, est: &[Quat<f64>], mode: Alignment) -> Result<Rmse, MetricsError> {
+    let truth = rec.truth.as_deref().ok_or(MetricsError::NoTruth)?;
+    rmse(est, truth, rec.use_mask.as_deref(), mode)
+}
+
+/// [`error_series`] of estimates against a recording's truth and use mask.
+pub fn evaluate_series(
+    rec: &Recording,
+    est: &[Quat<f64>],
+    mode: Alignment,
+) -> Result<ErrorSeries, MetricsError> {
+    let truth = rec.truth.as_deref().ok_or(MetricsError::NoTruth)?;
+    error_series(est, truth, rec.use_mask.as_deref(), mode)
+}
