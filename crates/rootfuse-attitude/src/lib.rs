@@ -20,6 +20,8 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod blocks;
+pub mod filters;
 mod interop;
 #[cfg(feature = "std")]
 pub mod io;
@@ -28,11 +30,14 @@ pub mod metrics;
 pub mod quat;
 #[cfg(feature = "std")]
 pub mod recording;
+#[cfg(feature = "std")]
+pub mod registry;
 pub mod sample;
 #[cfg(feature = "std")]
 pub mod sim;
 pub mod vec3;
 
+pub use filters::OrientationFilter;
 pub use quat::Quat;
 #[cfg(feature = "std")]
 pub use recording::Recording;

@@ -99,6 +99,12 @@ impl<T: Lane, const R: usize, const C: usize> Mat<T, R, C> {
         }
         worst
     }
+    /// `A · B · Aᵀ` for symmetric `B` (the covariance propagation `F P Fᵀ`, or `K R Kᵀ`),
+    /// symmetrised.
+    #[inline]
+    pub fn congruence(&self, b: &Mat<T, C, C>) -> Mat<T, R, R> {
+        (*self * *b * self.transpose()).symmetrize()
+    }
     /// Column `j`.
     #[inline]
     pub fn column(&self, j: usize) -> Vector<T, R> {
@@ -146,11 +152,6 @@ impl<T: Lane, const N: usize> Mat<T, N, N> {
                 self.m[i][j] = avi.mul_add(v.m[j][0], self.m[i][j]);
             }
         }
-    }
-    /// `A · B · Aᵀ` for symmetric `B` (the covariance propagation `F P Fᵀ`), symmetrised.
-    #[inline]
-    pub fn congruence(&self, b: &Self) -> Self {
-        (*self * *b * self.transpose()).symmetrize()
     }
 
     /// Cholesky factorisation `A = L·Lᵀ` of a symmetric matrix (only the lower triangle is read).

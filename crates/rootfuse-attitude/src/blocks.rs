@@ -1,0 +1,79 @@
+//! Building blocks: orientation from gravity and the magnetic field, gyro integration.
+//!
+//! All functions return a per-lane validity mask instead of failing: a zero, NaN or infinite
+//! vector, or a degenerate geometry, gives a finite fallback value and a false mask bit.
+
+use crate::quat::Quat;
+use crate::vec3::Vec3;
+use rootfuse_lane::{Lane, Mat};
+
+/// Integrates body rates over `dt` by the exact exponential map:
+/// `q ⊗ exp(ω·dt/2)`, renormalised. `omega` in rad/s (sensor frame), `dt` in s.
+#[inline]
+pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
+    (q * Quat::from_rotation_vector(omega * dt)).normalize()
+}
+
+/// Rotation vector over one interval with the two-sample coning correction
+/// `Φ = Δθ1 + Δθ2 + ⅔·Δθ1 × Δθ2` (Bortz; Savage 1998), from two consecutive angle increments
+/// (rad) that together span the interval.
+#[inline]
+pub fn coning_rotation_vector<T: Lane>(dtheta1: Vec3<T>, dtheta2: Vec3<T>) -> Vec3<T> {
+    dtheta1 + dtheta2 + dtheta1.cross(dtheta2) * T::from_f64(2.0 / 3.0)
+}
+
+/// The inclination-only orientation (zero heading) that maps the measured specific force to
+/// earth-up: `q.rotate(acc/|acc|) = [0, 0, 1]`.
+///
+/// Returns the identity and a false mask where `acc` is zero, tiny or not finite. Works for
+/// any tilt including upside down (the shortest arc is taken from the nearer of ±z).
+pub fn tilt_from_acc<T: Lane>(acc: Vec3<T>) -> (Quat<T>, T::Mask) {
+    let (a, ok) = acc.try_normalize();
+    let one = T::one();
+    // Shortest arc a → +z, well defined unless a ≈ −z.
+    let up = Quat::new(one + a.z, a.y, -a.x, T::zero());
+    // a → −z, then 180° about x (which maps −z to +z); well defined unless a ≈ +z.
+    let down = Quat::new(T::zero(), one, T::zero(), T::zero())
+        * Quat::new(one - a.z, -a.y, a.x, T::zero());
+    let q = Quat::select(a.z.simd_ge(T::zero()), up, down).normalize();
+    // Both branches carry some rotation about earth-z; inclination alone is what is wanted.
+    let (_, incl) = q.heading_inclination();
+    (Quat::select(ok, incl.normalize(), Quat::identity()), ok)
+}
+
+/// Orientation from gravity and the magnetic field (TRIAD with gravity as the exact vector):
+/// earth-up from `acc`, east along `mag × up`, north = up × east (ENU).
+///
+/// `min_sin_dip` is the smallest accepted sine of the angle between the two vectors: below it
+/// (field near vertical or parallel to gravity) the heading is ill-defined and the mask bit
+/// is false. The fallback value is [`tilt_from_acc`]'s.
+pub fn acc_mag_quat<T: Lane>(acc: Vec3<T>, mag: Vec3<T>, min_sin_dip: T) -> (Quat<T>, T::Mask) {
+    let (up, acc_ok) = acc.try_normalize();
+    let (m, mag_ok) = mag.try_normalize();
+    let east_raw = m.cross(up);
+    let (east, _) = east_raw.try_normalize();
+    let geometry_ok = east_raw.norm().simd_gt(min_sin_dip);
+    let north = up.cross(east);
+    // Rows are the earth axes in sensor coordinates: R maps sensor to earth.
+    let r = Mat::from_rows([east.to_array(), north.to_array(), up.to_array()]);
+    let q = Quat::from_rotation_matrix(&r);
+    let ok = acc_ok & mag_ok & geometry_ok;
+    let (tilt, _) = tilt_from_acc(acc);
+    (Quat::select(ok, q, tilt), ok)
+}
+
+/// Tilt-compensated magnetic heading: the rotation about earth-z (rad, counter-clockwise
+/// seen from above, `[-π, π]`) that turns the horizontal field of `q.rotate(mag)` onto north
+/// (+y in ENU), i.e. `atan2(h_x, h_y)` of the field in the earth frame of `q`.
+///
+/// Positive means `q` must turn left (counter-clockwise) by that much to point its field
+/// north. Returns a false mask where the horizontal field is too weak relative to the total
+/// (`|h_xy| < 0.05·|h|`) or the input is not finite.
+pub fn magnetic_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> (T, T::Mask) {
+    let h = q.rotate(mag);
+    let hxy2 = h.x * h.x + h.y * h.y;
+    let ok = hxy2.simd_gt(T::from_f64(0.0025) * h.norm_squared())
+        & hxy2.is_finite()
+        & hxy2.simd_gt(T::zero());
+    (T::select(ok, h.x.atan2(h.y), T::zero()), ok)
+}

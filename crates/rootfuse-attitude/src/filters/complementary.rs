@@ -1,0 +1,95 @@
+//! Quaternion complementary filter with decoupled inclination and heading corrections
+//! [`complementary`].
+
+use super::{
+    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params, up,
+};
+use crate::blocks::{integrate_gyro, magnetic_heading_error};
+use crate::{ImuSample, Quat, Vec3};
+use rootfuse_lane::{Lane, Mask};
+
+params! {
+    /// Parameters of [`Complementary`].
+    pub struct ComplementaryParams {
+        /// Time constant of the inclination correction toward gravity.
+        tau_acc: 3.0, "s", [1e-3, 1e6];
+        /// Time constant of the heading correction toward magnetic north.
+        tau_mag: 5.0, "s", [1e-3, 1e6];
+        /// 9: use the magnetometer for heading; 6: gravity only.
+        dof: 9.0, "1", [6.0, 9.0];
+    }
+}
+
+/// Gyro propagation, then two first-order corrections in the earth frame: a rotation about a
+/// horizontal axis that turns the measured gravity toward up (rate `dt/tau_acc`), and a
+/// rotation about earth-z that turns the horizontal field toward north (rate `dt/tau_mag`).
+///
+/// Because the heading correction is a rotation about earth-z, a magnetic disturbance can
+/// never tilt the inclination (unlike filters that feed the magnetometer into all axes).
+#[derive(Clone, Debug)]
+pub struct Complementary<T: Lane> {
+    q: Quat<T>,
+    initialized: T::Mask,
+    tau_acc: T,
+    tau_mag: T,
+    nine_d: bool,
+    limits: ScreenLimits,
+    rejections: Rejections<T>,
+}
+
+impl<T: Lane> Complementary<T> {
+    /// A filter with the given parameters.
+    pub fn new(p: &ComplementaryParams) -> Self {
+        Self {
+            q: Quat::identity(),
+            initialized: <T::Mask as Mask>::splat(false),
+            tau_acc: T::from_f64(p.tau_acc),
+            tau_mag: T::from_f64(p.tau_mag),
+            nine_d: nine_d(p.dof),
+            limits: ScreenLimits::default(),
+            rejections: Rejections::default(),
+        }
+    }
+}
+
+/// The earth-frame rotation vector that turns unit `a_earth` toward `up`, of angle
+/// `atan2(|a × up|, a·up)`; `a × up` scaled by angle/sin with the series near zero.
+#[inline]
+pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
+    let axis = a_earth.cross(up());
+    let s = axis.norm();
+    let angle = s.atan2(a_earth.z);
+    let small = s.simd_lt(T::from_f64(1e-4)) & a_earth.z.simd_gt(T::zero());
+    axis * T::select(small, T::one(), angle / s)
+}
+
+impl<T: Lane> OrientationFilter<T> for Complementary<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        if self.nine_d {
+            s.count_mag(&mut self.rejections);
+        } else {
+            s = s.without_mag();
+        }
+        let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
+        let mut q = integrate_gyro(q0, s.gyr, s.dt);
+
+        let k_acc = (s.dt / self.tau_acc).min(T::one());
+        let tilt = tilt_correction(q.rotate(s.acc)) * k_acc;
+        let q_acc = (Quat::from_rotation_vector(tilt) * q).normalize();
+        q = Quat::select(s.acc_ok, q_acc, q);
+
+        let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
+        let k_mag = (s.dt / self.tau_mag).min(T::one());
+        let q_mag = (Quat::from_heading(dpsi * k_mag) * q).normalize();
+        q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
+
+        self.q = Quat::select(s.step, q, self.q);
+    }
+    fn quat(&self) -> Quat<T> {
+        self.q
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+}

@@ -1,0 +1,211 @@
+//! The 7-state quaternion + gyro-bias extended Kalman filter [`ekf`]: the "plain EKF".
+
+use super::{
+    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, nine_d,
+    params, up,
+};
+use crate::{ImuSample, Quat, Vec3};
+use rootfuse_lane::{Lane, Mask, Mat};
+
+params! {
+    /// Parameters of [`Ekf`].
+    pub struct EkfParams {
+        /// Gyroscope white-noise density.
+        gyr_noise: 0.005, "rad/s/√Hz", [1e-9, 10.0];
+        /// Gyro-bias random-walk density.
+        bias_walk: 2e-5, "rad/s²/√Hz", [0.0, 10.0];
+        /// Standard deviation of the unit accelerometer direction (includes unmodelled acceleration).
+        acc_noise: 0.05, "1", [1e-6, 10.0];
+        /// Standard deviation of the unit magnetometer direction (includes disturbances).
+        mag_noise: 0.1, "1", [1e-6, 10.0];
+        /// Accelerometer corrections are skipped when `|‖a‖ − g| > acc_gate·g`.
+        acc_gate: 0.15, "1", [0.0, 100.0];
+        /// Gravity magnitude used by the gate.
+        gravity: 9.81, "m/s²", [0.1, 100.0];
+        /// Initial standard deviation of each gyro-bias component.
+        init_bias_std: 0.01, "rad/s", [1e-9, 10.0];
+        /// 9: use the magnetometer; 6: gravity only.
+        dof: 9.0, "1", [6.0, 9.0];
+    }
+}
+
+/// Additive-quaternion EKF with state `x = [q0..q3, bx, by, bz]`:
+/// `q_k = q_{k−1} ⊗ exp((ω − b)·T/2)` (the exact map; its Jacobian is taken as
+/// `F = [[I + (T/2)·Ω(ω − b), −(T/2)·Ξ(q)], [0, I3]]`), `Q = ΓWΓᵀ` from the gyro noise and
+/// bias random walk; measurements are the unit accelerometer (predicted `q* ⊗ up ⊗ q`) and
+/// unit magnetometer (predicted `q* ⊗ b ⊗ q`, `b = [0, |h_xy|, h_z]`) with Jacobian
+/// `2·vec(L(q* ⊗ d))`. Joseph-form covariance updates; the innovation covariance is
+/// Cholesky-factored per lane and a lane whose factorisation fails skips that update
+/// (counted as gated).
+#[derive(Clone, Debug)]
+pub struct Ekf<T: Lane> {
+    q: Quat<T>,
+    bias: Vec3<T>,
+    p: Mat<T, 7, 7>,
+    initialized: T::Mask,
+    gyr_var: T,
+    bias_var: T,
+    acc_var: T,
+    mag_var: T,
+    acc_gate: T,
+    gravity: T,
+    nine_d: bool,
+    limits: ScreenLimits,
+    rejections: Rejections<T>,
+}
+
+impl<T: Lane> Ekf<T> {
+    /// A filter with the given parameters.
+    pub fn new(p: &EkfParams) -> Self {
+        let mut cov = Mat::<T, 7, 7>::identity().scale(T::from_f64(0.01));
+        for i in 4..7 {
+            cov.m[i][i] = T::from_f64(p.init_bias_std * p.init_bias_std);
+        }
+        Self {
+            q: Quat::identity(),
+            bias: Vec3::zero(),
+            p: cov,
+            initialized: <T::Mask as Mask>::splat(false),
+            gyr_var: T::from_f64(p.gyr_noise * p.gyr_noise),
+            bias_var: T::from_f64(p.bias_walk * p.bias_walk),
+            acc_var: T::from_f64(p.acc_noise * p.acc_noise),
+            mag_var: T::from_f64(p.mag_noise * p.mag_noise),
+            acc_gate: T::from_f64(p.acc_gate * p.gravity),
+            gravity: T::from_f64(p.gravity),
+            nine_d: nine_d(p.dof),
+            limits: ScreenLimits::default(),
+            rejections: Rejections::default(),
+        }
+    }
+    /// The 7×7 state covariance (quaternion components, then bias).
+    pub fn covariance(&self) -> &Mat<T, 7, 7> {
+        &self.p
+    }
+
+    /// One vector measurement `s ≈ q* ⊗ d ⊗ q`; returns the lanes where it was applied.
+    fn correct(&mut self, d: Vec3<T>, s: Vec3<T>, var: T, apply: T::Mask) -> T::Mask {
+        let q = self.q;
+        let pq = q.conj() * Quat::pure(d);
+        let two = T::from_f64(2.0);
+        let h = Mat::<T, 3, 7>::from_rows([
+            [
+                pq.x * two,
+                pq.w * two,
+                -pq.z * two,
+                pq.y * two,
+                T::zero(),
+                T::zero(),
+                T::zero(),
+            ],
+            [
+                pq.y * two,
+                pq.z * two,
+                pq.w * two,
+                -pq.x * two,
+                T::zero(),
+                T::zero(),
+                T::zero(),
+            ],
+            [
+                pq.z * two,
+                -pq.y * two,
+                pq.x * two,
+                pq.w * two,
+                T::zero(),
+                T::zero(),
+                T::zero(),
+            ],
+        ]);
+        let r = Mat::<T, 3, 3>::identity().scale(var);
+        let pht = self.p * h.transpose();
+        let innovation_cov = h * pht + r;
+        let (l, ok) = innovation_cov.cholesky();
+        // K = P·Hᵀ·S⁻¹, computed as (S⁻¹·H·P)ᵀ since S and P are symmetric.
+        let k = l.cholesky_solve(&pht.transpose()).transpose();
+        let y = (s - q.rotate_inverse(d)).to_vector();
+        let dx = k * y;
+        let ikh = Mat::<T, 7, 7>::identity() - k * h;
+        let p_new = (ikh.congruence(&self.p) + k.congruence(&r)).symmetrize();
+        let q_new = Quat::new(q.w + dx[0], q.x + dx[1], q.y + dx[2], q.z + dx[3]);
+        let (q_new, q_ok) = q_new.try_normalize();
+        let b_new = self.bias + Vec3::new(dx[4], dx[5], dx[6]);
+        let accept = apply & ok & q_ok & p_new.is_finite() & b_new.is_finite();
+        T::count(&mut self.rejections.gated, apply & !accept);
+        self.q = Quat::select(accept, q_new, self.q);
+        self.bias = Vec3::select(accept, b_new, self.bias);
+        self.p = Mat::select(accept, &p_new, &self.p);
+        accept
+    }
+}
+
+impl<T: Lane> OrientationFilter<T> for Ekf<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        if self.nine_d {
+            s.count_mag(&mut self.rejections);
+        } else {
+            s = s.without_mag();
+        }
+        let (q_prev, b_prev, p_prev) = (self.q, self.bias, self.p);
+        let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
+
+        // Prediction.
+        let w = s.gyr - self.bias;
+        let half_dt = s.dt * T::from_f64(0.5);
+        let q_pred = (q * Quat::from_rotation_vector(w * s.dt)).normalize();
+        let (wx, wy, wz) = (w.x * half_dt, w.y * half_dt, w.z * half_dt);
+        let one = T::one();
+        let xi = Mat::<T, 4, 3>::from_rows([
+            [-q.x, -q.y, -q.z],
+            [q.w, -q.z, q.y],
+            [q.z, q.w, -q.x],
+            [-q.y, q.x, q.w],
+        ]);
+        let mut f = Mat::<T, 7, 7>::identity();
+        let a = [
+            [one, -wx, -wy, -wz],
+            [wx, one, wz, -wy],
+            [wy, -wz, one, wx],
+            [wz, wy, -wx, one],
+        ];
+        for ((row, a_row), xi_row) in f.m.iter_mut().zip(&a).zip(&xi.m) {
+            row[..4].copy_from_slice(a_row);
+            for (dst, x) in row[4..].iter_mut().zip(xi_row) {
+                *dst = -*x * half_dt;
+            }
+        }
+        let gq = xi.scale(half_dt);
+        let q_noise = (gq * gq.transpose()).scale(self.gyr_var * s.dt);
+        let mut p = f.congruence(&self.p);
+        for (row, noise) in p.m.iter_mut().zip(&q_noise.m) {
+            for (x, n) in row.iter_mut().zip(noise) {
+                *x += *n;
+            }
+        }
+        for i in 4..7 {
+            p.m[i][i] += self.bias_var * s.dt;
+        }
+        self.q = q_pred;
+        self.p = p;
+
+        // Corrections.
+        let acc_in_gate = (s.acc_norm - self.gravity).abs().simd_le(self.acc_gate);
+        T::count(&mut self.rejections.gated, s.acc_ok & !acc_in_gate);
+        self.correct(up(), s.acc, self.acc_var, s.acc_ok & acc_in_gate);
+        let b = mag_reference(self.q, s.mag).try_normalize().0;
+        self.correct(b, s.mag, self.mag_var, s.mag_ok);
+
+        self.q = Quat::select(s.step, self.q, q_prev);
+        self.bias = Vec3::select(s.step, self.bias, b_prev);
+        self.p = Mat::select(s.step, &self.p, &p_prev);
+    }
+    fn quat(&self) -> Quat<T> {
+        self.q
+    }
+    fn bias(&self) -> Vec3<T> {
+        self.bias
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+}

@@ -1,0 +1,49 @@
+//! Gyro-only integration [`gyro`].
+
+use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use crate::{ImuSample, Quat, blocks::integrate_gyro};
+use rootfuse_lane::{Lane, Mask};
+
+params! {
+    /// Parameters of [`GyroIntegration`].
+    pub struct GyroParams {
+        /// 1: take the initial inclination from the first usable accelerometer sample (heading
+        /// 0); 0: start at the identity.
+        init_from_acc: 1.0, "1", [0.0, 1.0];
+    }
+}
+
+/// Integrates the gyroscope by the exact exponential map, nothing else: the drift reference.
+#[derive(Clone, Debug)]
+pub struct GyroIntegration<T: Lane> {
+    q: Quat<T>,
+    initialized: T::Mask,
+    limits: ScreenLimits,
+    rejections: Rejections<T>,
+}
+
+impl<T: Lane> GyroIntegration<T> {
+    /// A filter with the given parameters, at the identity until initialised.
+    pub fn new(params: &GyroParams) -> Self {
+        Self {
+            q: Quat::identity(),
+            initialized: <T::Mask as Mask>::splat(params.init_from_acc < 0.5),
+            limits: ScreenLimits::default(),
+            rejections: Rejections::default(),
+        }
+    }
+}
+
+impl<T: Lane> OrientationFilter<T> for GyroIntegration<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        let q = initialise(self.q, &mut self.initialized, &s, false);
+        self.q = Quat::select(s.step, integrate_gyro(q, s.gyr, s.dt), self.q);
+    }
+    fn quat(&self) -> Quat<T> {
+        self.q
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+}

@@ -1,0 +1,98 @@
+//! Madgwick's gradient-descent filter [`madgwick`].
+
+use super::{
+    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, nine_d,
+    params, up,
+};
+use crate::{ImuSample, Quat, Vec3};
+use rootfuse_lane::{Lane, Mask};
+
+params! {
+    /// Parameters of [`Madgwick`].
+    pub struct MadgwickParams {
+        /// Gradient step gain β (the gyroscope-error rate it can correct).
+        beta: 0.055, "rad/s", [0.0, 10.0];
+        /// Gyro-bias drift gain ζ of the paper's MARG variant (0 disables bias estimation).
+        zeta: 0.0, "rad/s²", [0.0, 10.0];
+        /// 9: use the magnetometer; 6: gravity only.
+        dof: 9.0, "1", [6.0, 9.0];
+    }
+}
+
+/// Madgwick, Harrison & Vaidyanathan (2011): `q̇ = ½·q ⊗ (ω − b) − β·∇f/|∇f|`, with
+/// `f = q* ⊗ d ⊗ q − s` for the reference directions `d` (up; and the field reference
+/// `[0, |h_xy|, h_z]` in ENU) and the measured unit vectors `s`.
+///
+/// The gradient is computed in closed form as `∇(½|f|²) = −2·d ⊗ q ⊗ f` (pure quaternions),
+/// which needs no hand-expanded Jacobian; the magnetic reference takes the horizontal and
+/// vertical field components from the rotated measurement, so there is no factor-of-2 error
+/// in them. Gyro bias (section "gyroscope bias drift compensation" of the paper):
+/// `ḃ = ζ·vec(2·q* ⊗ ∇f/|∇f|)`.
+#[derive(Clone, Debug)]
+pub struct Madgwick<T: Lane> {
+    q: Quat<T>,
+    bias: Vec3<T>,
+    initialized: T::Mask,
+    beta: T,
+    zeta: T,
+    nine_d: bool,
+    limits: ScreenLimits,
+    rejections: Rejections<T>,
+}
+
+impl<T: Lane> Madgwick<T> {
+    /// A filter with the given parameters.
+    pub fn new(p: &MadgwickParams) -> Self {
+        Self {
+            q: Quat::identity(),
+            bias: Vec3::zero(),
+            initialized: <T::Mask as Mask>::splat(false),
+            beta: T::from_f64(p.beta),
+            zeta: T::from_f64(p.zeta),
+            nine_d: nine_d(p.dof),
+            limits: ScreenLimits::default(),
+            rejections: Rejections::default(),
+        }
+    }
+}
+
+/// `∇(½|q* ⊗ d ⊗ q − s|²)` with respect to the four components of `q`.
+#[inline]
+fn gradient<T: Lane>(q: Quat<T>, d: Vec3<T>, s: Vec3<T>) -> Quat<T> {
+    let f = q.rotate_inverse(d) - s;
+    (Quat::pure(d) * q * Quat::pure(f)).scale(T::from_f64(-2.0))
+}
+
+impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        if self.nine_d {
+            s.count_mag(&mut self.rejections);
+        } else {
+            s = s.without_mag();
+        }
+        let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
+
+        let zero = Quat::new(T::zero(), T::zero(), T::zero(), T::zero());
+        let g_acc = Quat::select(s.acc_ok, gradient(q, up(), s.acc), zero);
+        let g_mag = Quat::select(s.mag_ok, gradient(q, mag_reference(q, s.mag), s.mag), zero);
+        let (step, has_step) = (g_acc + g_mag).try_normalize();
+        let step = Quat::select(has_step, step, zero);
+
+        let omega_err = (q.conj() * step).vector() * T::from_f64(2.0);
+        let bias = self.bias + omega_err * (self.zeta * s.dt);
+        let q_dot = (q * Quat::pure(s.gyr - bias)).scale(T::from_f64(0.5)) - step.scale(self.beta);
+        let q_new = (q + q_dot.scale(s.dt)).normalize();
+        self.q = Quat::select(s.step, q_new, self.q);
+        self.bias = Vec3::select(s.step, bias, self.bias);
+    }
+    fn quat(&self) -> Quat<T> {
+        self.q
+    }
+    fn bias(&self) -> Vec3<T> {
+        self.bias
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+}

@@ -1,0 +1,104 @@
+//! Mahony's explicit complementary filter [`mahony`].
+
+use super::{
+    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params, up,
+};
+use crate::blocks::{integrate_gyro, magnetic_heading_error};
+use crate::{ImuSample, Quat, Vec3};
+use rootfuse_lane::{Lane, Mask};
+
+params! {
+    /// Parameters of [`Mahony`].
+    pub struct MahonyParams {
+        /// Proportional gain on the vector-alignment error.
+        kp: 0.5, "rad/s", [0.0, 100.0];
+        /// Integral gain (gyro-bias estimation).
+        ki: 0.02, "rad/s²", [0.0, 100.0];
+        /// Largest bias estimate magnitude the integral may reach (anti-windup).
+        max_bias: 0.2, "rad/s", [0.0, 10.0];
+        /// The bias integral learns only while the alignment error `|e|` is below this (about
+        /// 6° by default): a large error is a transient (start-up, a disturbance), not bias.
+        bias_gate: 0.1, "1", [0.0, 10.0];
+        /// 9: use the magnetometer; 6: gravity only.
+        dof: 9.0, "1", [6.0, 9.0];
+    }
+}
+
+/// Mahony, Hamel & Pflimlin (2008), "Nonlinear complementary filters on the special
+/// orthogonal group", explicit complementary filter with bias:
+/// `e = â × v̂ + Δψ·v̂`, `ω_c = ω − b̂ + Kp·e`, `ḃ = −Ki·e`, `q̇ = ½·q ⊗ ω_c`, with `v̂` the
+/// predicted up direction in the sensor frame and `Δψ` the tilt-compensated magnetic heading
+/// error (rad).
+///
+/// The paper's magnetometer term `m̂ × ŵ` has a gain on heading of only `cos²(dip)` (about
+/// 0.19 at 64° dip) and also acts on inclination; the heading error about the up axis has
+/// unit gain and cannot tilt the estimate, so the same `Kp`/`Ki` serve both axes.
+#[derive(Clone, Debug)]
+pub struct Mahony<T: Lane> {
+    q: Quat<T>,
+    bias: Vec3<T>,
+    initialized: T::Mask,
+    kp: T,
+    ki: T,
+    max_bias: T,
+    bias_gate: T,
+    nine_d: bool,
+    limits: ScreenLimits,
+    rejections: Rejections<T>,
+}
+
+impl<T: Lane> Mahony<T> {
+    /// A filter with the given parameters.
+    pub fn new(p: &MahonyParams) -> Self {
+        Self {
+            q: Quat::identity(),
+            bias: Vec3::zero(),
+            initialized: <T::Mask as Mask>::splat(false),
+            kp: T::from_f64(p.kp),
+            ki: T::from_f64(p.ki),
+            max_bias: T::from_f64(p.max_bias),
+            bias_gate: T::from_f64(p.bias_gate),
+            nine_d: nine_d(p.dof),
+            limits: ScreenLimits::default(),
+            rejections: Rejections::default(),
+        }
+    }
+}
+
+impl<T: Lane> OrientationFilter<T> for Mahony<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        if self.nine_d {
+            s.count_mag(&mut self.rejections);
+        } else {
+            s = s.without_mag();
+        }
+        let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
+
+        let v_hat = q.rotate_inverse(up());
+        let e_acc = Vec3::select(s.acc_ok, s.acc.cross(v_hat), Vec3::zero());
+        let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
+        let e_mag = Vec3::select(s.mag_ok & heading_ok, v_hat * dpsi, Vec3::zero());
+        let e = e_acc + e_mag;
+
+        let learn = e.norm().simd_lt(self.bias_gate);
+        let bias = Vec3::select(learn, self.bias - e * (self.ki * s.dt), self.bias);
+        // Anti-windup: scale the bias back onto the ball of radius max_bias.
+        let n = bias.norm();
+        let bias = bias * (self.max_bias / n.max(self.max_bias));
+        let omega = s.gyr - bias + e * self.kp;
+        let q_new = integrate_gyro(q, omega, s.dt);
+
+        self.q = Quat::select(s.step, q_new, self.q);
+        self.bias = Vec3::select(s.step, bias, self.bias);
+    }
+    fn quat(&self) -> Quat<T> {
+        self.q
+    }
+    fn bias(&self) -> Vec3<T> {
+        self.bias
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+}

@@ -1,0 +1,84 @@
+//! Orientation filters, all generic over [`Lane`].
+//!
+//! Every filter is a plain struct of parameters and state with
+//! [`OrientationFilter::update`]; nothing is allocated per update. Input screening is shared
+//! ([`Screened`]): a sample whose gyroscope or `dt` is unusable is skipped entirely for that
+//! lane, an unusable accelerometer or magnetometer only skips that correction; each skip is
+//! counted per reason in [`Rejections`].
+
+mod complementary;
+mod ekf;
+mod gyro;
+mod madgwick;
+mod mahony;
+mod params;
+mod screen;
+
+pub use complementary::{Complementary, ComplementaryParams};
+pub use ekf::{Ekf, EkfParams};
+pub use gyro::{GyroIntegration, GyroParams};
+pub use madgwick::{Madgwick, MadgwickParams};
+pub use mahony::{Mahony, MahonyParams};
+pub use params::ParamInfo;
+pub(crate) use params::params;
+#[cfg(feature = "std")]
+pub use params::{ParamError, Params};
+pub use screen::{Rejections, ScreenLimits, Screened};
+
+use crate::{ImuSample, Quat, Vec3};
+use rootfuse_lane::Lane;
+
+/// A causal orientation filter over lanes of type `T`.
+pub trait OrientationFilter<T: Lane> {
+    /// Processes one sample taken `dt` seconds after the previous one.
+    fn update(&mut self, sample: &ImuSample<T>, dt: T);
+    /// Current orientation, sensor to earth (ENU), unit norm.
+    fn quat(&self) -> Quat<T>;
+    /// Current gyroscope-bias estimate, rad/s (zero for filters without one).
+    fn bias(&self) -> Vec3<T> {
+        Vec3::zero()
+    }
+    /// Per-lane counts of skipped samples and corrections, by reason.
+    fn rejections(&self) -> &Rejections<T>;
+}
+
+/// Shared initialisation: where a lane is not yet initialised and this sample has a usable
+/// accelerometer, the orientation is taken from the sample (gravity, and the magnetometer
+/// when `nine_d` and usable); elsewhere `q` is returned unchanged.
+pub(crate) fn initialise<T: Lane>(
+    q: Quat<T>,
+    initialized: &mut T::Mask,
+    s: &Screened<T>,
+    nine_d: bool,
+) -> Quat<T> {
+    let (tilt, _) = crate::blocks::tilt_from_acc(s.acc);
+    let q_meas = if nine_d {
+        let (am, am_ok) = crate::blocks::acc_mag_quat(s.acc, s.mag, T::from_f64(0.1));
+        Quat::select(am_ok & s.mag_ok, am, tilt)
+    } else {
+        tilt
+    };
+    let fresh = !*initialized & s.acc_ok;
+    *initialized |= fresh;
+    Quat::select(fresh, q_meas, q)
+}
+
+/// Earth-up in ENU.
+#[inline]
+pub(crate) fn up<T: Lane>() -> Vec3<T> {
+    Vec3::new(T::zero(), T::zero(), T::one())
+}
+
+/// The field direction reference `[0, |h_xy|, h_z]` (unit, ENU) for a unit sensor-frame field
+/// `mag` seen through `q`: north-pointing horizontal part, the measured dip kept.
+#[inline]
+pub(crate) fn mag_reference<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> Vec3<T> {
+    let h = q.rotate(mag);
+    Vec3::new(T::zero(), (h.x * h.x + h.y * h.y).sqrt(), h.z)
+}
+
+/// The number 6 or 9 of a `dof` parameter as "use the magnetometer".
+#[inline]
+pub(crate) fn nine_d(dof: f64) -> bool {
+    dof > 7.5
+}

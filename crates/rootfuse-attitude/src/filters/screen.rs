@@ -1,0 +1,122 @@
+//! Shared input screening: one rule for every filter about what is usable.
+
+use crate::{ImuSample, Vec3};
+use rootfuse_lane::{Lane, Mask};
+
+/// Limits that decide whether a sample is usable.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScreenLimits {
+    /// Largest accepted time step, s; larger gaps are skipped (the orientation would be a guess).
+    pub max_dt: f64,
+    /// Largest accepted angular rate magnitude, rad/s (a saturated gyroscope lies).
+    pub max_gyr: f64,
+}
+
+impl Default for ScreenLimits {
+    fn default() -> Self {
+        // 1 s covers any real sample rate with dropouts; 35 rad/s ≈ 2000 °/s, the usual
+        // full-scale range of MEMS gyroscopes.
+        Self {
+            max_dt: 1.0,
+            max_gyr: 35.0,
+        }
+    }
+}
+
+/// Per-lane counts of what was skipped, by reason (each a `u64` per lane).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Rejections<T: Lane> {
+    /// Whole samples skipped: `dt` not finite, `≤ 0` or above `max_dt`.
+    pub dt: T::Counts,
+    /// Whole samples skipped: gyroscope not finite or above `max_gyr`.
+    pub gyr: T::Counts,
+    /// Accelerometer corrections skipped: not finite or zero.
+    pub acc: T::Counts,
+    /// Magnetometer corrections skipped (9D only): absent, not finite or zero.
+    pub mag: T::Counts,
+    /// Corrections skipped by the filter's own gate (e.g. acceleration norm, innovation test).
+    pub gated: T::Counts,
+}
+
+impl<T: Lane> Rejections<T> {
+    /// Total whole-sample skips in `lane`.
+    pub fn samples_skipped(&self, lane: usize) -> u64 {
+        self.dt.as_ref()[lane] + self.gyr.as_ref()[lane]
+    }
+}
+
+/// A sample after screening: unusable parts replaced by harmless values, with masks.
+///
+/// Where `step` is false, `gyr` and `dt` are zero, so propagation is the identity; where
+/// `acc_ok`/`mag_ok` are false, the unit vectors are `+z`/`+y`, so the correction arithmetic
+/// stays finite and is discarded by the caller's `select`.
+#[derive(Clone, Copy, Debug)]
+pub struct Screened<T: Lane> {
+    /// Gyroscope and `dt` usable: the state may move.
+    pub step: T::Mask,
+    /// Angular rate, rad/s (zero where `!step`).
+    pub gyr: Vec3<T>,
+    /// Time step, s (zero where `!step`).
+    pub dt: T,
+    /// Accelerometer usable (and `step`).
+    pub acc_ok: T::Mask,
+    /// Unit specific force (sensor frame).
+    pub acc: Vec3<T>,
+    /// Specific-force norm, m/s² (zero where unusable).
+    pub acc_norm: T,
+    /// Magnetometer usable (and `step`); false for every 6D sample.
+    pub mag_ok: T::Mask,
+    /// Unit magnetic field (sensor frame).
+    pub mag: Vec3<T>,
+    /// Magnetic-field norm, input units (zero where unusable).
+    pub mag_norm: T,
+}
+
+impl<T: Lane> Screened<T> {
+    /// Screens `sample` and counts the rejections.
+    pub fn new(
+        sample: &ImuSample<T>,
+        dt: T,
+        limits: &ScreenLimits,
+        counts: &mut Rejections<T>,
+    ) -> Self {
+        let zero = T::zero();
+        let dt_ok = dt.simd_gt(zero) & dt.simd_le(T::from_f64(limits.max_dt));
+        let g2 = sample.gyr.norm_squared();
+        let gyr_ok = g2.simd_le(T::from_f64(limits.max_gyr * limits.max_gyr));
+        let step = dt_ok & gyr_ok;
+        T::count(&mut counts.dt, !dt_ok);
+        T::count(&mut counts.gyr, dt_ok & !gyr_ok);
+
+        let (acc, acc_unit_ok) = sample.acc.try_normalize();
+        let acc_ok = acc_unit_ok & step;
+        T::count(&mut counts.acc, step & !acc_unit_ok);
+        let (mag, mag_unit_ok) = sample.mag.try_normalize();
+        let mag_ok = mag_unit_ok & step;
+
+        let up = Vec3::new(zero, zero, T::one());
+        let north = Vec3::new(zero, T::one(), zero);
+        Self {
+            step,
+            gyr: Vec3::select(step, sample.gyr, Vec3::zero()),
+            dt: T::select(step, dt, zero),
+            acc_ok,
+            acc: Vec3::select(acc_ok, acc, up),
+            acc_norm: T::select(acc_ok, sample.acc.norm(), zero),
+            mag_ok,
+            mag: Vec3::select(mag_ok, mag, north),
+            mag_norm: T::select(mag_ok, sample.mag.norm(), zero),
+        }
+    }
+
+    /// Marks the magnetometer unusable (6D operation) without counting it.
+    pub fn without_mag(mut self) -> Self {
+        self.mag_ok = <T::Mask as Mask>::splat(false);
+        self
+    }
+
+    /// Counts a 9D magnetometer rejection for usable samples without a usable field.
+    pub fn count_mag(&self, counts: &mut Rejections<T>) {
+        T::count(&mut counts.mag, self.step & !self.mag_ok);
+    }
+}

@@ -1,0 +1,194 @@
+//! The list of filters by CLI name, with their parameters: one list for the CLI, the batch
+//! engine and the tests.
+//!
+//! ```
+//! use rootfuse_attitude::registry::FilterSpec;
+//! use rootfuse_attitude::{ImuSample, OrientationFilter, Vec3};
+//!
+//! let mut spec = FilterSpec::new("mahony").unwrap();
+//! spec.set("kp=1.0").unwrap();
+//! spec.set_dof(6).unwrap();
+//! assert!(spec.set("kp=abc").is_err());
+//! let mut filter = spec.build::<f32>();
+//! let sample = ImuSample::six_d(Vec3::zero(), Vec3::new(0.0, 0.0, 9.81));
+//! filter.update(&sample, 0.01);
+//! assert!((filter.quat().norm() - 1.0).abs() < 1e-6);
+//! ```
+
+use crate::filters::*;
+use crate::{ImuSample, Quat, Vec3};
+use core::fmt;
+use rootfuse_lane::Lane;
+use std::string::{String, ToString};
+
+/// Why a filter could not be selected or configured.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RegistryError {
+    /// No filter of that name; the valid names are listed.
+    UnknownFilter {
+        /// The name given.
+        name: String,
+        /// Every registered name.
+        valid: &'static [&'static str],
+    },
+    /// A parameter override was rejected.
+    Param(ParamError),
+}
+
+impl fmt::Display for RegistryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownFilter { name, valid } => {
+                write!(f, "unknown filter `{name}` (valid: {})", valid.join(", "))
+            }
+            Self::Param(e) => e.fmt(f),
+        }
+    }
+}
+impl std::error::Error for RegistryError {}
+impl From<ParamError> for RegistryError {
+    fn from(e: ParamError) -> Self {
+        Self::Param(e)
+    }
+}
+
+macro_rules! registry {
+    ($( $variant:ident => $name:literal, $filter:ident, $params:ident, $doc:literal; )*) => {
+        /// A registered filter.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum FilterKind {
+            $( #[doc = $doc] $variant, )*
+        }
+
+        impl FilterKind {
+            /// Every registered filter, in listing order.
+            pub const ALL: &'static [FilterKind] = &[$(FilterKind::$variant),*];
+            /// Every registered name.
+            pub const NAMES: &'static [&'static str] = &[$($name),*];
+            /// The CLI name.
+            pub fn name(self) -> &'static str {
+                match self { $(Self::$variant => $name,)* }
+            }
+            /// One line on what the filter is.
+            pub fn description(self) -> &'static str {
+                match self { $(Self::$variant => $doc,)* }
+            }
+            /// The filter's parameters.
+            pub fn params(self) -> &'static [ParamInfo] {
+                match self { $(Self::$variant => $params::INFO,)* }
+            }
+            /// The filter of a CLI name.
+            pub fn from_name(name: &str) -> Result<Self, RegistryError> {
+                match name {
+                    $($name => Ok(Self::$variant),)*
+                    _ => Err(RegistryError::UnknownFilter { name: name.to_string(), valid: Self::NAMES }),
+                }
+            }
+        }
+
+        /// The parameters of one registered filter.
+        #[derive(Clone, Debug, PartialEq)]
+        pub enum AnyParams {
+            $( #[doc = $doc] $variant($params), )*
+        }
+
+        impl AnyParams {
+            fn defaults(kind: FilterKind) -> Self {
+                match kind { $(FilterKind::$variant => Self::$variant($params::default()),)* }
+            }
+            fn apply(&mut self, assignment: &str) -> Result<(), ParamError> {
+                match self { $(Self::$variant(p) => p.apply(assignment),)* }
+            }
+            fn set(&mut self, name: &str, value: f64) -> Result<(), ParamError> {
+                match self { $(Self::$variant(p) => p.set(name, value),)* }
+            }
+            fn get(&self, name: &str) -> Option<f64> {
+                match self { $(Self::$variant(p) => p.get(name),)* }
+            }
+        }
+
+        /// Any registered filter over lanes of type `T`: what the CLI and the batch engine run.
+        #[derive(Clone, Debug)]
+        pub enum AnyFilter<T: Lane> {
+            $( #[doc = $doc] $variant($filter<T>), )*
+        }
+
+        impl<T: Lane> AnyFilter<T> {
+            fn build(params: &AnyParams) -> Self {
+                match params { $(AnyParams::$variant(p) => Self::$variant($filter::new(p)),)* }
+            }
+        }
+
+        impl<T: Lane> OrientationFilter<T> for AnyFilter<T> {
+            #[inline]
+            fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+                match self { $(Self::$variant(f) => f.update(sample, dt),)* }
+            }
+            #[inline]
+            fn quat(&self) -> Quat<T> {
+                match self { $(Self::$variant(f) => f.quat(),)* }
+            }
+            #[inline]
+            fn bias(&self) -> Vec3<T> {
+                match self { $(Self::$variant(f) => f.bias(),)* }
+            }
+            #[inline]
+            fn rejections(&self) -> &Rejections<T> {
+                match self { $(Self::$variant(f) => f.rejections(),)* }
+            }
+        }
+    };
+}
+
+registry! {
+    Gyro => "gyro", GyroIntegration, GyroParams, "Gyro-only integration by the exponential map (the drift reference).";
+    Complementary => "complementary", Complementary, ComplementaryParams, "Quaternion complementary filter, decoupled inclination and heading corrections.";
+    Mahony => "mahony", Mahony, MahonyParams, "Mahony explicit complementary filter with bias integral.";
+    Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
+    Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
+}
+
+/// A filter choice with its parameter values: build it for any lane type.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilterSpec {
+    kind: FilterKind,
+    params: AnyParams,
+}
+
+impl FilterSpec {
+    /// The named filter with default parameters.
+    pub fn new(name: &str) -> Result<Self, RegistryError> {
+        let kind = FilterKind::from_name(name)?;
+        Ok(Self {
+            kind,
+            params: AnyParams::defaults(kind),
+        })
+    }
+    /// Which filter.
+    pub fn kind(&self) -> FilterKind {
+        self.kind
+    }
+    /// Applies a `key=value` override (validated).
+    pub fn set(&mut self, assignment: &str) -> Result<(), RegistryError> {
+        Ok(self.params.apply(assignment)?)
+    }
+    /// Selects 6D (no magnetometer) or 9D operation, for filters that have a `dof` parameter.
+    pub fn set_dof(&mut self, dof: u8) -> Result<(), RegistryError> {
+        if self.params.get("dof").is_some() {
+            self.params.set("dof", f64::from(dof))?;
+        }
+        Ok(())
+    }
+    /// The current value of a parameter.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.params.get(name)
+    }
+    /// The parameters.
+    pub fn params(&self) -> &AnyParams {
+        &self.params
+    }
+    /// A fresh filter over lanes of type `T` with these parameters.
+    pub fn build<T: Lane>(&self) -> AnyFilter<T> {
+        AnyFilter::build(&self.params)
+    }
+}

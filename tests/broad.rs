@@ -1,0 +1,148 @@
+//! Every registered filter on the four BROAD trials (6D and 9D, one parameter set): RMSE
+//! pinned so that any change in accuracy, better or worse, is seen and the table updated.
+use crate::common::broad_dir;
+use rootfuse_attitude::io::read_csv;
+use rootfuse_attitude::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_attitude::registry::{FilterKind, FilterSpec};
+use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+
+const TRIALS: [&str; 4] = [
+    "02_undisturbed_slow_rotation_B",
+    "07_undisturbed_fast_rotation_B",
+    "16_undisturbed_fast_translation_B",
+    "29_disturbed_stationary_magnet_B",
+];
+
+/// RMSE in degrees `[total, heading, inclination]` per trial, f64, default parameters.
+/// Regenerate with `cargo run --release --example broad_table`.
+#[rustfmt::skip]
+const PINNED: [(&str, u8, [[f64; 3]; 4]); 10] = [
+    ("gyro", 9, [[25.54, 13.14, 21.95], [23.47, 16.29, 16.97], [35.92, 20.67, 29.61], [10.06, 4.58, 8.96]]),
+    ("gyro", 6, [[22.06, 2.22, 21.95], [18.11, 6.33, 16.97], [30.44, 7.16, 29.61], [9.76, 3.87, 8.96]]),
+    ("complementary", 9, [[2.04, 1.83, 0.90], [3.62, 3.17, 1.75], [29.89, 9.87, 28.26], [10.93, 9.50, 5.42]]),
+    ("complementary", 6, [[2.26, 2.08, 0.90], [6.85, 6.62, 1.75], [33.50, 18.16, 28.26], [7.31, 4.90, 5.42]]),
+    ("mahony", 9, [[1.47, 1.42, 0.38], [3.28, 2.84, 1.64], [17.23, 14.62, 9.20], [10.55, 9.27, 5.05]]),
+    ("mahony", 6, [[1.91, 1.86, 0.40], [8.18, 8.01, 1.67], [13.32, 9.62, 9.22], [6.95, 4.77, 5.05]]),
+    ("madgwick", 9, [[1.65, 1.51, 0.67], [6.46, 6.02, 2.36], [9.39, 8.86, 3.11], [4.38, 3.41, 2.75]]),
+    ("madgwick", 6, [[2.20, 2.10, 0.65], [7.09, 6.76, 2.13], [7.77, 7.19, 2.94], [5.54, 4.02, 3.81]]),
+    ("ekf", 9, [[1.59, 1.53, 0.44], [2.99, 1.66, 2.48], [18.38, 15.41, 10.06], [7.48, 6.21, 4.17]]),
+    ("ekf", 6, [[1.29, 1.22, 0.42], [6.33, 5.56, 3.03], [98.98, 98.19, 14.49], [27.62, 27.02, 5.80]]),
+];
+
+/// The "Madgwick 9D (ahrs pkg)" column of the reference table (total RMSE, degrees).
+const MADGWICK_REFERENCE: [f64; 4] = [1.72, 7.35, 9.62, 4.36];
+
+pub fn run_filter<T: Lane>(
+    spec: &FilterSpec,
+    rec: &Recording,
+    to: impl Fn(f64) -> T,
+    from: impl Fn(T) -> f64,
+) -> Vec<Quat<f64>> {
+    let mut f = spec.build::<T>();
+    let v = |x: Vec3<f64>| Vec3::new(to(x.x), to(x.y), to(x.z));
+    (0..rec.len())
+        .map(|i| {
+            let s = rec.sample(i);
+            f.update(&ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)), to(rec.dt(i)));
+            let q = f.quat();
+            Quat::new(from(q.w), from(q.x), from(q.y), from(q.z))
+        })
+        .collect()
+}
+
+fn rmse(spec: &FilterSpec, rec: &Recording, dof: u8, f32_lanes: bool) -> Rmse {
+    let est = if f32_lanes {
+        run_filter::<f32>(spec, rec, |x| x as f32, |x| x as f64)
+    } else {
+        run_filter::<f64>(spec, rec, |x| x, |x| x)
+    };
+    let align = if dof == 9 {
+        Alignment::NineD
+    } else {
+        Alignment::SixD
+    };
+    evaluate(rec, &est, align).expect("BROAD trials have truth")
+}
+
+#[test]
+fn broad_rmse_is_pinned() {
+    let Some(dir) = broad_dir() else { return };
+    let recs: Vec<Recording> = TRIALS
+        .iter()
+        .map(|t| read_csv(dir.join(format!("{t}.csv"))).unwrap())
+        .collect();
+    let mut failures = Vec::new();
+    for (name, dof, pinned) in PINNED {
+        let mut spec = FilterSpec::new(name).unwrap();
+        spec.set_dof(dof).unwrap();
+        for (k, rec) in recs.iter().enumerate() {
+            let r = rmse(&spec, rec, dof, false);
+            let got = [r.total, r.heading, r.inclination];
+            eprintln!(
+                "{name:>13} {dof}D {:<34} {:6.2} / {:6.2} / {:6.2}",
+                rec.name, got[0], got[1], got[2]
+            );
+            for (g, p) in got.iter().zip(pinned[k]) {
+                if (g - p).abs() > 0.011 {
+                    failures.push(format!(
+                        "{name} {dof}D {}: {g:.3} vs pinned {p:.2}",
+                        rec.name
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "BROAD RMSE changed:\n{}",
+        failures.join("\n")
+    );
+    assert_eq!(
+        PINNED.len(),
+        FilterKind::ALL.len() * 2,
+        "every filter, 6D and 9D, is pinned"
+    );
+}
+
+/// f32 gives the same accuracy as f64 (within 0.5° total RMSE, the EKF 6D being the loosest).
+#[test]
+fn broad_f32_matches_f64() {
+    let Some(dir) = broad_dir() else { return };
+    let rec = read_csv(dir.join(format!("{}.csv", TRIALS[1]))).unwrap();
+    for &kind in FilterKind::ALL {
+        for dof in [6u8, 9] {
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            let (a, b) = (rmse(&spec, &rec, dof, false), rmse(&spec, &rec, dof, true));
+            assert!(
+                (a.total - b.total).abs() < 0.5,
+                "{} {dof}D: f64 {} vs f32 {}",
+                kind.name(),
+                a.total,
+                b.total
+            );
+        }
+    }
+}
+
+/// Our Madgwick 9D against the reference implementation's published numbers. It is at least
+/// as good on trials 02, 07 and 16; on 29 (magnetic disturbance) it is 4.38 vs 4.36 and no
+/// single gain beats both 16 and 29 (see the closing note of issue 4).
+#[test]
+fn madgwick_against_reference() {
+    let pinned = PINNED
+        .iter()
+        .find(|(n, d, _)| *n == "madgwick" && *d == 9)
+        .unwrap()
+        .2;
+    for k in 0..3 {
+        assert!(
+            pinned[k][0] <= MADGWICK_REFERENCE[k],
+            "{}: {} > {}",
+            TRIALS[k],
+            pinned[k][0],
+            MADGWICK_REFERENCE[k]
+        );
+    }
+    assert!(pinned[3][0] - MADGWICK_REFERENCE[3] < 0.05);
+}
