@@ -430,6 +430,115 @@ pub fn read_csv_from<R: std::io::Read>(
     Ok(rec)
 }
 
+/// Orientation estimates read back from a `t,qw,qx,qy,qz` file (what [`write_estimates`] and
+/// `rootfuse run` write; extra columns are ignored).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Estimates {
+    /// Sample times, s, strictly increasing.
+    pub t: Vec<f64>,
+    /// Orientation, sensor to earth (ENU).
+    pub quat: Vec<Quat<f64>>,
+}
+
+/// Reads an estimate file (`t,qw,qx,qy,qz`, any column order, extra columns ignored).
+///
+/// Errors name file, line and column like [`read_csv`]; every value must be finite and time
+/// must increase.
+pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
+    let file = path.as_ref();
+    let io = |source| ReadError::Io {
+        file: file.to_owned(),
+        source,
+    };
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(std::io::BufReader::new(
+            std::fs::File::open(file).map_err(io)?,
+        ));
+    let mut record = csv::ByteRecord::new();
+    if !rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(file, e))?
+    {
+        return Err(ReadError::Empty {
+            file: file.to_owned(),
+        });
+    }
+    let header: Vec<String> = record
+        .iter()
+        .map(|f| {
+            String::from_utf8_lossy(trim(f))
+                .trim_start_matches('\u{feff}')
+                .to_string()
+        })
+        .collect();
+    let mut cols = [0usize; 5];
+    for (slot, name) in cols.iter_mut().zip(["t", "qw", "qx", "qy", "qz"]) {
+        *slot = header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| ReadError::MissingColumn {
+                file: file.to_owned(),
+                column: name,
+            })?;
+    }
+    let mut est = Estimates::default();
+    while rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(file, e))?
+    {
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() == 1 && trim(&record[0]).is_empty() {
+            continue;
+        }
+        if record.len() != header.len() {
+            return Err(ReadError::FieldCount {
+                file: file.to_owned(),
+                line,
+                expected: header.len(),
+                found: record.len(),
+            });
+        }
+        let mut v = [0.0; 5];
+        for (k, &c) in cols.iter().enumerate() {
+            let text = || String::from_utf8_lossy(&record[c]).into_owned();
+            let x = parse_f64(&record[c]).ok_or_else(|| ReadError::NotNumeric {
+                file: file.to_owned(),
+                line,
+                column: header[c].clone(),
+                index: c + 1,
+                text: text(),
+            })?;
+            if !x.is_finite() {
+                return Err(ReadError::NotNumeric {
+                    file: file.to_owned(),
+                    line,
+                    column: header[c].clone(),
+                    index: c + 1,
+                    text: text(),
+                });
+            }
+            v[k] = x;
+        }
+        if let Some(&previous) = est.t.last()
+            && v[0] <= previous
+        {
+            return Err(ReadError::NonMonotonicTime {
+                file: file.to_owned(),
+                line,
+                column: header[cols[0]].clone(),
+                index: cols[0] + 1,
+                value: v[0],
+                previous,
+            });
+        }
+        est.t.push(v[0]);
+        est.quat.push(Quat::new(v[1], v[2], v[3], v[4]));
+    }
+    Ok(est)
+}
+
 /// Where each known column is (0-based field indices).
 struct Layout {
     required: [usize; 7],
@@ -735,8 +844,14 @@ fn check_name(file: &Path, name: &str, taken: &[&str]) -> Result<(), WriteError>
 /// Appends `,v` for each value (the leading comma is stripped per row by the caller).
 fn push_all(row: &mut String, values: &[f64]) {
     for v in values {
-        // `{}` on f64 is the shortest string that parses back to the same bits; NaN is "NaN".
-        let _ = write!(row, ",{v}");
+        // Both forms print the shortest string that parses back to the same bits; `{}` never
+        // uses an exponent, which would spell 1e-24 with 24 zeros. NaN is "NaN".
+        let plain = *v == 0.0 || !v.is_finite() || (1e-5..1e16).contains(&v.abs());
+        let _ = if plain {
+            write!(row, ",{v}")
+        } else {
+            write!(row, ",{v:e}")
+        };
     }
 }
 

@@ -1,8 +1,16 @@
 //! The `rootfuse` command line.
+//!
+//! Exit codes: 0 success; 1 some files failed under `--keep-going` (the others were
+//! processed); 2 an error (bad arguments, unreadable or malformed input), reported as one line
+//! naming file, line and column where there is one.
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod demo;
+mod engine;
+mod eval;
+mod filters;
+mod run;
 
 /// Numerically robust estimation: attitude filters, least squares, SIMD batch processing.
 #[derive(Parser)]
@@ -16,15 +24,36 @@ struct Cli {
 enum Command {
     /// Runs the built-in default job on simulated data and prints accuracy and throughput.
     Demo(demo::DemoArgs),
+    /// Runs a filter over IMU CSV files and writes one estimate file per input.
+    Run(run::RunArgs),
+    /// Scores estimate files against ground truth with the BROAD metrics.
+    Eval(eval::EvalArgs),
+    /// Lists every filter with its parameters, defaults and units.
+    Filters,
+}
+
+/// How a command ended.
+pub enum Outcome {
+    /// Everything worked.
+    Success,
+    /// Some inputs failed but the others were processed (`--keep-going`).
+    Partial,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Demo(args) => demo::run(&args),
+        Command::Demo(args) => demo::run(&args).map(|()| Outcome::Success),
+        Command::Run(args) => run::run(&args),
+        Command::Eval(args) => eval::run(&args).map(|()| Outcome::Success),
+        Command::Filters => {
+            filters::print();
+            Ok(Outcome::Success)
+        }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Outcome::Success) => ExitCode::SUCCESS,
+        Ok(Outcome::Partial) => ExitCode::from(1),
         Err(message) => {
             eprintln!("error: {message}");
             ExitCode::from(2)
