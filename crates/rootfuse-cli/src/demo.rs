@@ -1,118 +1,224 @@
 //! `rootfuse demo`: the built-in default job.
 //!
-//! Today it integrates a fleet of simulated gyroscopes (constant body rates about random axes,
-//! whose exact orientation is known in closed form) with the exponential map, in f32 and f64,
-//! one channel at a time and eight channels per `f32x8`, and prints the error against the
-//! closed form and the throughput of each. It grows with the filters.
+//! Simulates a fleet of IMUs over several scenarios (the seeded simulator: exact truth, a
+//! realistic sensor model), runs every registered filter in 9D and 6D through the same engine
+//! as `rootfuse run`, adds the BROAD recordings when they are present, and prints an accuracy
+//! table and a throughput table. It writes a Markdown report and plots (PNG and SVG: error
+//! over time per filter, error per scenario) to the output folder.
+use crate::engine::{Precision, run_recordings};
+use crate::plot;
 use clap::Args;
-use rootfuse_attitude::{Quat, Vec3};
-use rootfuse_lane::Lane;
-use std::hint::black_box;
+use rootfuse_attitude::io::list_dir;
+use rootfuse_attitude::metrics::{Alignment, evaluate, evaluate_series};
+use rootfuse_attitude::registry::{FilterKind, FilterSpec};
+use rootfuse_attitude::sim::scenario_batch;
+use rootfuse_attitude::{Recording, io::read_csv};
+use std::fmt::Write as _;
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Options of `rootfuse demo`.
 #[derive(Args)]
 pub struct DemoArgs {
-    /// Number of simulated IMU channels.
+    /// Number of simulated IMU channels (spread evenly over the scenarios).
     #[arg(long, default_value_t = 1024)]
     channels: usize,
-    /// Samples per channel (at 200 Hz).
-    #[arg(long, default_value_t = 2000)]
-    samples: usize,
+    /// Length of each simulated recording, s.
+    #[arg(long, default_value_t = 20.0)]
+    seconds: f64,
+    /// Sample rate of the simulated IMUs, Hz.
+    #[arg(long, default_value_t = 100.0)]
+    rate: f64,
+    /// Folder with real recordings (BROAD CSV format); default `../shared/broad_csv` if present.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Output folder for the report and the plots.
+    #[arg(long, default_value = "out/demo")]
+    out: PathBuf,
 }
 
-const DT: f64 = 0.005;
+/// The simulated scenarios of the demo.
+const SCENARIOS: [&str; 4] = [
+    "slow-rotation",
+    "fast-rotation",
+    "translation",
+    "magnetic-disturbance",
+];
 
-/// A deterministic channel: body rate (rad/s) about a fixed axis.
-fn channel_rate(i: usize) -> Vec3<f64> {
-    // Golden-angle spiral over the sphere, rates from 0.1 to 6 rad/s.
-    let k = i as f64 + 0.5;
-    let z = 1.0 - 2.0 * (k / 1024.0).fract();
-    let r = (1.0 - z * z).sqrt();
-    let phi = k * 2.399_963_229_728_653;
-    let rate = 0.1 + 5.9 * ((k * 0.618_033_988_749_895).fract());
-    Vec3::new(r * phi.cos(), r * phi.sin(), z) * rate
+/// Accuracy of one filter configuration on one group of recordings.
+struct Cell {
+    mean_total: f64,
+    mean_inclination: f64,
 }
 
-fn integrate<T: Lane>(rate: Vec3<T>, dt: T, samples: usize) -> Quat<T> {
-    let mut q = Quat::identity();
-    for _ in 0..samples {
-        q = (q * Quat::from_rotation_vector(black_box(rate) * dt)).normalize();
-    }
-    q
-}
-
-/// Runs the demo and prints its tables.
+/// Runs the demo.
 pub fn run(args: &DemoArgs) -> Result<(), String> {
-    if args.channels == 0 || args.samples == 0 {
-        return Err("--channels and --samples must be at least 1".into());
+    let positive = |x: f64| x > 0.0 && x.is_finite(); // false for NaN too
+    if args.channels < SCENARIOS.len() || !positive(args.seconds) || !positive(args.rate) {
+        return Err(format!(
+            "--channels must be at least {} and --seconds, --rate positive",
+            SCENARIOS.len()
+        ));
     }
-    let (n, s) = (args.channels, args.samples);
-    let exact: Vec<Quat<f64>> = (0..n)
-        .map(|i| {
-            let w = channel_rate(i);
-            let angle = w.norm() * DT * s as f64;
-            Quat::from_axis_angle(w.try_normalize().0, angle)
-        })
-        .collect();
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
+    let per = args.channels / SCENARIOS.len();
+    let start = Instant::now();
+    let mut fleet: Vec<(&str, Vec<Recording>)> = Vec::new();
+    for (k, name) in SCENARIOS.iter().enumerate() {
+        let seeds: Vec<u64> = (0..per as u64).map(|s| s + 1000 * k as u64).collect();
+        fleet.push((
+            name,
+            scenario_batch(name, &seeds, args.seconds, args.rate).map_err(|e| e.to_string())?,
+        ));
+    }
+    let samples_per_filter: usize = fleet.iter().flat_map(|(_, r)| r).map(Recording::len).sum();
     println!(
-        "rootfuse demo: {n} gyro channels x {s} samples at {:.0} Hz, exponential-map integration",
-        1.0 / DT
+        "rootfuse demo: {} simulated IMUs ({per} per scenario) x {} s at {} Hz, simulated in {:.2} s",
+        per * SCENARIOS.len(),
+        args.seconds,
+        args.rate,
+        start.elapsed().as_secs_f64()
     );
-    println!();
-    println!("| mode        | max error (deg) | channel-updates/s |");
-    println!("|-------------|-----------------|-------------------|");
 
-    let t = Instant::now();
-    let mut worst = 0.0f64;
-    for (i, q_exact) in exact.iter().enumerate() {
-        let q = integrate(channel_rate(i), DT, s);
-        worst = worst.max(q.angle_to(*q_exact));
-    }
-    report("scalar f64", worst, n * s, t.elapsed().as_secs_f64());
+    let broad_dir = args.data.clone().or_else(|| {
+        let d = PathBuf::from("../shared/broad_csv");
+        d.join("index.csv").is_file().then_some(d)
+    });
+    let broad: Vec<Recording> = match &broad_dir {
+        Some(d) => list_dir(d)
+            .map_err(|e| e.to_string())?
+            .iter()
+            .map(read_csv)
+            .collect::<Result<_, _>>()
+            .map_err(|e| e.to_string())?,
+        None => Vec::new(),
+    };
 
-    let t = Instant::now();
-    let mut worst = 0.0f64;
-    for (i, q_exact) in exact.iter().enumerate() {
-        let w = channel_rate(i);
-        let q = integrate(Vec3::new(w.x as f32, w.y as f32, w.z as f32), DT as f32, s);
-        worst = worst.max(to_f64(q).angle_to(*q_exact));
-    }
-    report("scalar f32", worst, n * s, t.elapsed().as_secs_f64());
-
-    type V = rootfuse_lane::wide::f32x8;
-    let t = Instant::now();
-    let mut worst = 0.0f64;
-    for chunk in 0..n.div_ceil(8) {
-        let idx = |lane: usize| (chunk * 8 + lane).min(n - 1);
-        let rate = Vec3::<V>::from_lanes(|lane| {
-            let w = channel_rate(idx(lane));
-            Vec3::new(w.x as f32, w.y as f32, w.z as f32)
-        });
-        let q = integrate(rate, V::splat(DT as f32), s);
-        for lane in 0..8 {
-            worst = worst.max(to_f64(q.lane(lane)).angle_to(exact[idx(lane)]));
+    let mut accuracy: Vec<(String, Vec<Cell>)> = Vec::new();
+    let mut real: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut speed: Vec<(String, f64)> = Vec::new();
+    let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+    for &kind in FilterKind::ALL {
+        for dof in [9u8, 6] {
+            let mut spec = FilterSpec::new(kind.name()).map_err(|e| e.to_string())?;
+            spec.set_dof(dof).map_err(|e| e.to_string())?;
+            let align = if dof == 9 {
+                Alignment::NineD
+            } else {
+                Alignment::SixD
+            };
+            let label = format!("{} {dof}D", kind.name());
+            let mut cells = Vec::new();
+            let mut filtering = 0.0;
+            for (name, recs) in &fleet {
+                let t0 = Instant::now();
+                let outputs = run_recordings(&spec, recs, Precision::F32);
+                filtering += t0.elapsed().as_secs_f64();
+                let (mut total, mut incl) = (0.0, 0.0);
+                for (rec, out) in recs.iter().zip(&outputs) {
+                    let r = evaluate(rec, &out.quat, align).map_err(|e| e.to_string())?;
+                    total += r.total;
+                    incl += r.inclination;
+                }
+                // Gyro-only never observes heading: its 9D error would flatten every other curve.
+                if *name == "fast-rotation" && dof == 9 && kind != FilterKind::Gyro {
+                    let s = evaluate_series(&recs[0], &outputs[0].quat, align)
+                        .map_err(|e| e.to_string())?;
+                    series.push((kind.name().to_string(), s.total));
+                }
+                let n = recs.len() as f64;
+                cells.push(Cell {
+                    mean_total: total / n,
+                    mean_inclination: incl / n,
+                });
+            }
+            speed.push((label.clone(), samples_per_filter as f64 / filtering));
+            accuracy.push((label.clone(), cells));
+            if !broad.is_empty() {
+                let outputs = run_recordings(&spec, &broad, Precision::F32);
+                let totals = broad
+                    .iter()
+                    .zip(&outputs)
+                    .map(|(rec, out)| evaluate(rec, &out.quat, align).map(|r| r.total))
+                    .collect::<Result<Vec<f64>, _>>()
+                    .map_err(|e| e.to_string())?;
+                real.push((label, totals));
+            }
         }
     }
-    report(
-        "lanes f32x8",
-        worst,
-        n.div_ceil(8) * 8 * s,
-        t.elapsed().as_secs_f64(),
+
+    let mut report = String::new();
+    let _ = writeln!(report, "# rootfuse demo\n");
+    let _ = writeln!(
+        report,
+        "{} simulated IMUs, {} s at {} Hz each, every filter in f32 with its default parameters.\n",
+        per * SCENARIOS.len(),
+        args.seconds,
+        args.rate
     );
-    println!();
-    println!("Errors are against the closed-form rotation; lanes equal scalar f32 bit for bit.");
-    Ok(())
-}
-
-fn to_f64(q: Quat<f32>) -> Quat<f64> {
-    Quat::new(q.w as f64, q.x as f64, q.y as f64, q.z as f64)
-}
-
-fn report(mode: &str, worst_rad: f64, updates: usize, seconds: f64) {
+    let _ = writeln!(
+        report,
+        "## Accuracy on the simulated fleet (mean RMSE, degrees: total / inclination)\n"
+    );
+    let _ = writeln!(report, "| filter | {} |", SCENARIOS.join(" | "));
+    let _ = writeln!(report, "|---|{}", "---|".repeat(SCENARIOS.len()));
+    for (label, cells) in &accuracy {
+        let row: Vec<String> = cells
+            .iter()
+            .map(|c| format!("{:.2} / {:.2}", c.mean_total, c.mean_inclination))
+            .collect();
+        let _ = writeln!(report, "| {label} | {} |", row.join(" | "));
+    }
+    if !broad.is_empty() {
+        let names: Vec<&str> = broad.iter().map(|r| r.name.as_str()).collect();
+        let _ = writeln!(
+            report,
+            "\n## Accuracy on real recordings (total RMSE, degrees)\n"
+        );
+        let _ = writeln!(report, "| filter | {} | mean |", names.join(" | "));
+        let _ = writeln!(report, "|---|{}---|", "---|".repeat(names.len()));
+        for (label, totals) in &real {
+            let mean = totals.iter().sum::<f64>() / totals.len() as f64;
+            let row: Vec<String> = totals.iter().map(|t| format!("{t:.2}")).collect();
+            let _ = writeln!(report, "| {label} | {} | {mean:.2} |", row.join(" | "));
+        }
+    }
+    let _ = writeln!(
+        report,
+        "\n## Throughput (f32, this machine; simulation and evaluation not timed)\n"
+    );
+    let _ = writeln!(report, "| filter | channel-updates/s | ns per update |");
+    let _ = writeln!(report, "|---|---|---|");
+    for (label, rate) in &speed {
+        let _ = writeln!(report, "| {label} | {rate:.3e} | {:.1} |", 1e9 / rate);
+    }
+    let fig1 = plot::error_over_time(
+        &args.out,
+        "error_over_time",
+        "fast-rotation, channel 0, 9D",
+        args.rate,
+        &series,
+    )?;
+    let per_scenario: Vec<(String, Vec<f64>)> = accuracy
+        .iter()
+        .filter(|(l, _)| l.ends_with("9D") && !l.starts_with("gyro"))
+        .map(|(l, c)| (l.clone(), c.iter().map(|c| c.mean_total).collect()))
+        .collect();
+    let fig2 =
+        plot::error_per_scenario(&args.out, "error_per_scenario", &SCENARIOS, &per_scenario)?;
+    let _ = writeln!(
+        report,
+        "\n## Plots\n\n![error over time]({fig1})\n\n![error per scenario]({fig2})"
+    );
+    let report_path = args.out.join("report.md");
+    std::fs::write(&report_path, &report)
+        .map_err(|e| format!("{}: cannot write: {e}", report_path.display()))?;
+    print!("{report}");
     println!(
-        "| {mode:<11} | {:>15.3e} | {:>17.3e} |",
-        worst_rad.to_degrees(),
-        updates as f64 / seconds
+        "\nReport, PNG and SVG plots in {} ({:.1} s in all).",
+        args.out.display(),
+        start.elapsed().as_secs_f64()
     );
+    Ok(())
 }

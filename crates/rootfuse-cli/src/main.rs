@@ -10,6 +10,7 @@ mod demo;
 mod engine;
 mod eval;
 mod filters;
+mod plot;
 mod run;
 
 /// Numerically robust estimation: attitude filters, least squares, SIMD batch processing.

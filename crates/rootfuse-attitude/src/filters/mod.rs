@@ -26,7 +26,7 @@ pub use params::{ParamError, Params};
 pub use screen::{Rejections, ScreenLimits, Screened};
 
 use crate::{ImuSample, Quat, Vec3};
-use rootfuse_lane::Lane;
+use rootfuse_lane::{Lane, Mask};
 
 /// A causal orientation filter over lanes of type `T`.
 pub trait OrientationFilter<T: Lane> {
@@ -51,6 +51,10 @@ pub(crate) fn initialise<T: Lane>(
     s: &Screened<T>,
     nine_d: bool,
 ) -> Quat<T> {
+    // Uniform across lanes, so results are unchanged: once no lane can start, skip the work.
+    if (!*initialized & s.acc_ok).none() {
+        return q;
+    }
     let (tilt, _) = crate::blocks::tilt_from_acc(s.acc);
     let q_meas = if nine_d {
         let (am, am_ok) = crate::blocks::acc_mag_quat(s.acc, s.mag, T::from_f64(0.1));

@@ -1,0 +1,208 @@
+//! Plots for the demo report, each written as PNG and SVG.
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// Registers the embedded DejaVu Sans as plotters' `sans-serif` (once per process), so text
+/// renders without system font libraries.
+fn fonts() -> Result<(), String> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+            .is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err("the embedded font could not be loaded".into())
+    }
+}
+
+const SIZE: (u32, u32) = (900, 480);
+
+type Drawn = Result<(), Box<dyn std::error::Error>>;
+
+fn palette(i: usize) -> RGBColor {
+    const COLORS: [RGBColor; 8] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+    ];
+    COLORS[i % COLORS.len()]
+}
+
+fn finite_max<'a>(values: impl Iterator<Item = &'a f64>) -> f64 {
+    values
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(1.0f64, f64::max)
+}
+
+/// Error over time (degrees) of several filters on one recording sampled at `rate` Hz.
+/// Returns the PNG's file name.
+pub fn error_over_time(
+    dir: &Path,
+    stem: &str,
+    title: &str,
+    rate: f64,
+    series: &[(String, Vec<f64>)],
+) -> Result<String, String> {
+    fonts()?;
+    let y_max = finite_max(series.iter().flat_map(|(_, v)| v)) * 1.05;
+    let t_max = series.iter().map(|(_, v)| v.len()).max().unwrap_or(1) as f64 / rate;
+    let (png, svg) = (
+        dir.join(format!("{stem}.png")),
+        dir.join(format!("{stem}.svg")),
+    );
+    draw_time(
+        BitMapBackend::new(&png, SIZE).into_drawing_area(),
+        title,
+        rate,
+        (t_max, y_max),
+        series,
+    )
+    .map_err(|e| format!("{}: {e}", png.display()))?;
+    draw_time(
+        SVGBackend::new(&svg, SIZE).into_drawing_area(),
+        title,
+        rate,
+        (t_max, y_max),
+        series,
+    )
+    .map_err(|e| format!("{}: {e}", svg.display()))?;
+    Ok(format!("{stem}.png"))
+}
+
+fn draw_time<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    rate: f64,
+    (t_max, y_max): (f64, f64),
+    series: &[(String, Vec<f64>)],
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(0.0..t_max, 0.0..y_max)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("total error (deg)")
+        .draw()?;
+    for (i, (name, values)) in series.iter().enumerate() {
+        let color = palette(i);
+        let points = values
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(k, v)| (k as f64 / rate, *v));
+        chart
+            .draw_series(LineSeries::new(points, color.stroke_width(2)))?
+            .label(name.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// Mean error per scenario (degrees), one group of bars per scenario. Returns the PNG's name.
+pub fn error_per_scenario(
+    dir: &Path,
+    stem: &str,
+    scenarios: &[&str],
+    rows: &[(String, Vec<f64>)],
+) -> Result<String, String> {
+    fonts()?;
+    let y_max = finite_max(rows.iter().flat_map(|(_, v)| v)) * 1.1;
+    let (png, svg) = (
+        dir.join(format!("{stem}.png")),
+        dir.join(format!("{stem}.svg")),
+    );
+    draw_bars(
+        BitMapBackend::new(&png, SIZE).into_drawing_area(),
+        scenarios,
+        y_max,
+        rows,
+    )
+    .map_err(|e| format!("{}: {e}", png.display()))?;
+    draw_bars(
+        SVGBackend::new(&svg, SIZE).into_drawing_area(),
+        scenarios,
+        y_max,
+        rows,
+    )
+    .map_err(|e| format!("{}: {e}", svg.display()))?;
+    Ok(format!("{stem}.png"))
+}
+
+fn draw_bars<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    scenarios: &[&str],
+    y_max: f64,
+    rows: &[(String, Vec<f64>)],
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    let groups = scenarios.len();
+    // Each scenario is a group of one bar per filter plus a gap.
+    let width = rows.len().max(1) as f64 + 1.0;
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("mean total RMSE per scenario (9D)", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(0.0..(groups as f64 * width), 0.0..y_max)?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(0)
+        .y_desc("deg")
+        .draw()?;
+    // Category names above their groups: tick positions of a numeric axis would miss them.
+    chart.draw_series(scenarios.iter().enumerate().map(|(g, name)| {
+        Text::new(
+            name.to_string(),
+            (g as f64 * width + 0.5, y_max * 0.97),
+            ("sans-serif", 15),
+        )
+    }))?;
+    for (i, (name, values)) in rows.iter().enumerate() {
+        let color = palette(i);
+        let bars = values.iter().enumerate().map(|(g, v)| {
+            let x0 = g as f64 * width + 0.5 + i as f64;
+            Rectangle::new([(x0, 0.0), (x0 + 0.9, v.min(y_max))], color.filled())
+        });
+        chart
+            .draw_series(bars)?
+            .label(name.as_str())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
