@@ -9,4 +9,5 @@ mod filters;
 mod lane;
 mod mat;
 mod quat;
+mod rls;
 mod sim;
