@@ -73,7 +73,7 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
         ));
     }
     let samples_per_filter: usize = fleet.iter().flat_map(|(_, r)| r).map(Recording::len).sum();
-    println!(
+    out!(
         "rootfuse demo: {} simulated IMUs ({per} per scenario) x {} s at {} Hz, simulated in {:.2} s",
         per * SCENARIOS.len(),
         args.seconds,
@@ -214,8 +214,8 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
     let report_path = args.out.join("report.md");
     std::fs::write(&report_path, &report)
         .map_err(|e| format!("{}: cannot write: {e}", report_path.display()))?;
-    print!("{report}");
-    println!(
+    out!("{}", report.trim_end());
+    out!(
         "\nReport, PNG and SVG plots in {} ({:.1} s in all).",
         args.out.display(),
         start.elapsed().as_secs_f64()

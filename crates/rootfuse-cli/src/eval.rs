@@ -112,21 +112,23 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
                 )
             })
             .collect();
-        println!(
+        out!(
             "{{\"files\": [{}], \"mean\": {{\"total\": {mt}, \"heading\": {mh}, \"inclination\": {mi}}}}}",
             files.join(", ")
         );
     } else {
-        println!("| file | total (deg) | heading (deg) | inclination (deg) |");
-        println!("|---|---|---|---|");
+        out!("| file | total (deg) | heading (deg) | inclination (deg) |");
+        out!("|---|---|---|---|");
         for (name, r) in &rows {
-            println!(
+            out!(
                 "| {name} | {:.3} | {:.3} | {:.3} |",
-                r.total, r.heading, r.inclination
+                r.total,
+                r.heading,
+                r.inclination
             );
         }
         if rows.len() > 1 {
-            println!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
+            out!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
         }
     }
     Ok(())

@@ -4,9 +4,9 @@ use rootfuse_attitude::registry::FilterKind;
 /// Prints the registry.
 pub fn print() {
     for &kind in FilterKind::ALL {
-        println!("{}: {}", kind.name(), kind.description());
+        out!("{}: {}", kind.name(), kind.description());
         for p in kind.params() {
-            println!(
+            out!(
                 "    {:<14} default {:<8} [{}, {}] {:<10} {}",
                 p.name,
                 p.default,
@@ -17,5 +17,5 @@ pub fn print() {
             );
         }
     }
-    println!("\nOverride with --param key=value; --dof 6|9 sets `dof` where a filter has one.");
+    out!("\nOverride with --param key=value; --dof 6|9 sets `dof` where a filter has one.");
 }

@@ -4,6 +4,19 @@
 //! processed); 2 an error (bad arguments, unreadable or malformed input), reported as one line
 //! naming file, line and column where there is one.
 use clap::{Parser, Subcommand};
+
+/// `println!` that ends the process quietly when stdout is closed (output piped into `head`),
+/// instead of panicking.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+        }
+    }};
+}
 use std::process::ExitCode;
 
 mod demo;
@@ -12,6 +25,7 @@ mod eval;
 mod filters;
 mod plot;
 mod run;
+mod stress;
 
 /// Numerically robust estimation: attitude filters, least squares, SIMD batch processing.
 #[derive(Parser)]
@@ -31,6 +45,8 @@ enum Command {
     Eval(eval::EvalArgs),
     /// Lists every filter with its parameters, defaults and units.
     Filters,
+    /// Numerical stress scenarios for every recursive least-squares form (f32 and f64).
+    Stress(stress::StressArgs),
 }
 
 /// How a command ended.
@@ -47,6 +63,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args).map(|()| Outcome::Success),
         Command::Run(args) => run::run(&args),
         Command::Eval(args) => eval::run(&args).map(|()| Outcome::Success),
+        Command::Stress(args) => stress::run(&args).map(|()| Outcome::Success),
         Command::Filters => {
             filters::print();
             Ok(Outcome::Success)

@@ -117,16 +117,20 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         }
         samples += rec.len();
     }
-    println!(
+    out!(
         "{} file(s), {samples} samples, {:.3e} samples/s ({:?}), estimates in {}",
         recs.len(),
         samples as f64 / seconds.max(1e-9),
         args.precision,
         args.out.display()
     );
-    println!(
+    out!(
         "rejected: dt {}, gyro {}, accelerometer {}, magnetometer {}, gated {}",
-        totals[0], totals[1], totals[2], totals[3], totals[4]
+        totals[0],
+        totals[1],
+        totals[2],
+        totals[3],
+        totals[4]
     );
     if failed > 0 {
         eprintln!("{failed} file(s) failed");

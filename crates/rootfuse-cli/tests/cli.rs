@@ -228,3 +228,40 @@ fn filters_lists_the_registry() {
         assert!(stdout.contains(&format!("{name}: ")), "{name} missing");
     }
 }
+
+#[test]
+fn stress_json_has_the_specified_keys() {
+    let o = run(&[
+        "stress",
+        "--scenario",
+        "dyer-mcreynolds",
+        "--scale",
+        "1",
+        "--json",
+    ]);
+    let (json, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(json.trim_start().starts_with('[') && json.trim_end().ends_with(']'));
+    let rows = json.matches("\"form\"").count();
+    assert!(
+        rows >= 6 * 2 * 7,
+        "every form, both precisions, seven deltas: {rows} rows"
+    );
+    for key in [
+        "precision",
+        "scenario",
+        "param",
+        "steps",
+        "max_rel_err",
+        "pd_lost_at",
+        "nan_at",
+        "detected",
+        "ns_per_update",
+    ] {
+        assert_eq!(json.matches(&format!("\"{key}\":")).count(), rows, "{key}");
+    }
+    // The covariance forms in f32 report their own failure at the smallest deltas.
+    assert!(json.contains("\"form\": \"conventional\", \"precision\": \"f32\", \"scenario\": \"dyer-mcreynolds\", \"param\": 1e-8"));
+    let o = run(&["stress", "--scenario", "nonsense"]);
+    assert_eq!(o.status.code(), Some(2));
+}
