@@ -8,6 +8,7 @@ mod data_io;
 mod filters;
 mod lane;
 mod mat;
+mod preprocess;
 mod quat;
 mod rls;
 mod sim;

@@ -27,6 +27,7 @@ mod interop;
 pub mod io;
 #[cfg(feature = "std")]
 pub mod metrics;
+pub mod preprocess;
 pub mod quat;
 #[cfg(feature = "std")]
 pub mod recording;

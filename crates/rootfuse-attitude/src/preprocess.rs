@@ -1,0 +1,272 @@
+//! Streaming, causal pre-processing of one signal per lane: allocation-free after
+//! construction, branch-free per lane.
+//!
+//! A non-finite input (NaN, ±∞) in a lane is not let into the filter's memory, where it would
+//! poison the next `N` outputs: it is replaced by that lane's last finite input
+//! (sample-and-hold) and counted in `rejected`. Windows start filled with the first finite
+//! sample, so there is no start-up transient toward zero.
+//!
+//! ```
+//! use rootfuse_attitude::preprocess::{Hampel, MovingMedian};
+//! let mut median = MovingMedian::<f64, 5>::new();
+//! let out: Vec<f64> = [1.0, 1.0, 9.0, 1.0, 1.0].iter().map(|&x| median.update(x)).collect();
+//! assert_eq!(out, [1.0, 1.0, 1.0, 1.0, 1.0]); // the spike never reaches the median
+//! let mut hampel = Hampel::<f64, 7>::new(3.0);
+//! for x in [1.0, 1.1, 0.9, 1.0, 1.05, 0.95] {
+//!     hampel.update(x);
+//! }
+//! assert!((hampel.update(50.0) - 1.0).abs() < 0.1); // an outlier is replaced by the median
+//! ```
+
+use rootfuse_lane::{Lane, Mask};
+
+/// State shared by the windowed filters: the ring buffer, the first-sample fill, the
+/// sample-and-hold of non-finite inputs and the rejection count.
+#[derive(Clone, Debug)]
+struct Window<T: Lane, const W: usize> {
+    buf: [T; W],
+    next: usize,
+    hold: Hold<T>,
+}
+
+impl<T: Lane, const W: usize> Window<T, W> {
+    fn new() -> Self {
+        const { assert!(W >= 1, "the window holds at least one sample") };
+        Self {
+            buf: [T::zero(); W],
+            next: 0,
+            hold: Hold::new(),
+        }
+    }
+    /// Stores the (held) sample; the first finite sample of a lane fills its whole window.
+    fn push(&mut self, x: T) -> T {
+        let (x, fresh) = self.hold.accept(x);
+        if fresh.any() {
+            for slot in &mut self.buf {
+                *slot = T::select(fresh, x, *slot);
+            }
+        }
+        self.buf[self.next] = x;
+        self.next = (self.next + 1) % W;
+        x
+    }
+}
+
+/// Sample-and-hold of non-finite inputs, with the per-lane rejection count.
+#[derive(Clone, Debug)]
+struct Hold<T: Lane> {
+    last: T,
+    started: T::Mask,
+    rejected: T::Counts,
+}
+
+impl<T: Lane> Hold<T> {
+    fn new() -> Self {
+        Self {
+            last: T::zero(),
+            started: <T::Mask as Mask>::splat(false),
+            rejected: T::Counts::default(),
+        }
+    }
+    /// `x` where finite, else the last finite input; and the lanes whose first finite input
+    /// this is.
+    fn accept(&mut self, x: T) -> (T, T::Mask) {
+        let ok = x.is_finite();
+        T::count(&mut self.rejected, !ok);
+        let fresh = ok & !self.started;
+        self.started |= ok;
+        self.last = T::select(ok, x, self.last);
+        (self.last, fresh)
+    }
+}
+
+/// Median of `W` lanes-values by an odd-even transposition network of compare-exchanges
+/// (`min`/`max`), so every lane does the same work and lanes equal scalar runs.
+fn median<T: Lane, const W: usize>(values: &[T; W]) -> T {
+    let mut v = *values;
+    for round in 0..W {
+        let mut i = round % 2;
+        while i + 1 < W {
+            let (a, b) = (v[i], v[i + 1]);
+            v[i] = a.min(b);
+            v[i + 1] = a.max(b);
+            i += 2;
+        }
+    }
+    v[W / 2]
+}
+
+/// First-order low-pass `y(n) = a·x(n) + (1 − a)·y(n−1)`, `a ∈ (0, 1]`, started at the first
+/// finite sample.
+#[derive(Clone, Debug)]
+pub struct LowPass<T: Lane> {
+    a: T,
+    y: T,
+    hold: Hold<T>,
+}
+
+impl<T: Lane> LowPass<T> {
+    /// A low-pass with smoothing factor `a` (1 = pass-through); `a` is clamped to `(0, 1]`.
+    pub fn new(a: f64) -> Self {
+        let a = if a > 0.0 {
+            a.min(1.0)
+        } else {
+            f64::MIN_POSITIVE
+        };
+        Self {
+            a: T::from_f64(a),
+            y: T::zero(),
+            hold: Hold::new(),
+        }
+    }
+    /// The factor `a = dt / (τ + dt)` of a time constant `tau` (s) at sample interval `dt` (s).
+    pub fn from_time_constant(tau: f64, dt: f64) -> Self {
+        Self::new(dt / (tau + dt))
+    }
+    /// Filters one sample.
+    pub fn update(&mut self, x: T) -> T {
+        let (x, fresh) = self.hold.accept(x);
+        let previous = T::select(fresh, x, self.y);
+        self.y = self.a.mul_add(x - previous, previous);
+        self.y
+    }
+    /// Per-lane count of rejected (non-finite) inputs.
+    pub fn rejected(&self) -> &T::Counts {
+        &self.hold.rejected
+    }
+}
+
+/// Moving mean over the last `N` samples.
+#[derive(Clone, Debug)]
+pub struct MovingMean<T: Lane, const N: usize> {
+    window: Window<T, N>,
+}
+
+impl<T: Lane, const N: usize> Default for MovingMean<T, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Lane, const N: usize> MovingMean<T, N> {
+    /// A moving mean of window `N`.
+    pub fn new() -> Self {
+        Self {
+            window: Window::new(),
+        }
+    }
+    /// Filters one sample.
+    pub fn update(&mut self, x: T) -> T {
+        self.window.push(x);
+        // Summing the window each time (N is small) avoids the drift of a running sum in f32.
+        let mut sum = T::zero();
+        for v in &self.window.buf {
+            sum += *v;
+        }
+        sum / T::from_f64(N as f64)
+    }
+    /// Per-lane count of rejected (non-finite) inputs.
+    pub fn rejected(&self) -> &T::Counts {
+        &self.window.hold.rejected
+    }
+}
+
+/// Moving median over the last `W = 2N + 1` samples (`W` odd).
+#[derive(Clone, Debug)]
+pub struct MovingMedian<T: Lane, const W: usize> {
+    window: Window<T, W>,
+}
+
+impl<T: Lane, const W: usize> Default for MovingMedian<T, W> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Lane, const W: usize> MovingMedian<T, W> {
+    /// A moving median of odd window `W`.
+    pub fn new() -> Self {
+        const { assert!(W % 2 == 1, "the median window is 2N + 1 samples") };
+        Self {
+            window: Window::new(),
+        }
+    }
+    /// Filters one sample.
+    pub fn update(&mut self, x: T) -> T {
+        self.window.push(x);
+        median(&self.window.buf)
+    }
+    /// Per-lane count of rejected (non-finite) inputs.
+    pub fn rejected(&self) -> &T::Counts {
+        &self.window.hold.rejected
+    }
+}
+
+/// Hampel outlier replacement (causal): a sample further than `k·1.4826·MAD` from the median
+/// of the last `W` samples (itself included) is replaced by that median; `1.4826·MAD`
+/// estimates the standard deviation of Gaussian data.
+#[derive(Clone, Debug)]
+pub struct Hampel<T: Lane, const W: usize> {
+    k: T,
+    window: Window<T, W>,
+    replaced: T::Counts,
+}
+
+impl<T: Lane, const W: usize> Hampel<T, W> {
+    /// A Hampel filter of odd window `W` and threshold `k` (standard deviations; 3 is usual).
+    pub fn new(k: f64) -> Self {
+        const { assert!(W % 2 == 1, "the Hampel window is 2N + 1 samples") };
+        Self {
+            k: T::from_f64(k * 1.4826),
+            window: Window::new(),
+            replaced: T::Counts::default(),
+        }
+    }
+    /// Filters one sample.
+    pub fn update(&mut self, x: T) -> T {
+        let x = self.window.push(x);
+        let m = median(&self.window.buf);
+        let deviations = self.window.buf.map(|v| (v - m).abs());
+        let mad = median(&deviations);
+        let outlier = (x - m).abs().simd_gt(self.k * mad);
+        T::count(&mut self.replaced, outlier);
+        T::select(outlier, m, x)
+    }
+    /// Per-lane count of rejected (non-finite) inputs.
+    pub fn rejected(&self) -> &T::Counts {
+        &self.window.hold.rejected
+    }
+    /// Per-lane count of outliers replaced by the median.
+    pub fn replaced(&self) -> &T::Counts {
+        &self.replaced
+    }
+}
+
+/// One-sided amplitude spectrum of a real signal sampled at `rate_hz` (offline analysis):
+/// `(frequency in Hz, amplitude)` pairs from 0 to Nyquist, amplitude scaled so a sine of
+/// amplitude `A` on a bin shows `A`. Uses `realfft`; the mean is not removed.
+#[cfg(feature = "std")]
+pub fn spectrum(signal: &[f64], rate_hz: f64) -> std::vec::Vec<(f64, f64)> {
+    let n = signal.len();
+    let valid_rate = rate_hz > 0.0 && rate_hz.is_finite();
+    if n < 2 || !valid_rate {
+        return std::vec::Vec::new();
+    }
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(n);
+    let mut input = signal.to_vec();
+    let mut output = fft.make_output_vec();
+    // Lengths match by construction of the plan, so processing cannot fail.
+    if fft.process(&mut input, &mut output).is_err() {
+        return std::vec::Vec::new();
+    }
+    output
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let edge = k == 0 || (n.is_multiple_of(2) && k == n / 2);
+            let scale = if edge { 1.0 } else { 2.0 } / n as f64;
+            (k as f64 * rate_hz / n as f64, c.norm() * scale)
+        })
+        .collect()
+}
