@@ -231,7 +231,14 @@ proptest! {
 fn registry_names_and_errors() {
     assert_eq!(
         FilterKind::NAMES,
-        ["gyro", "complementary", "mahony", "madgwick", "ekf"]
+        [
+            "gyro",
+            "complementary",
+            "mahony",
+            "madgwick",
+            "ekf",
+            "sqrt-eskf"
+        ]
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();
     assert!(

@@ -6,6 +6,7 @@ mod broad;
 mod common;
 mod data_io;
 mod filters;
+mod flagship;
 mod lane;
 mod mat;
 mod preprocess;

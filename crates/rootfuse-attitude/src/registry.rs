@@ -80,6 +80,8 @@ macro_rules! registry {
             /// The filter of a CLI name.
             pub fn from_name(name: &str) -> Result<Self, RegistryError> {
                 match name {
+                    // The flagship filter is also accepted under its role name.
+                    "flagship" => Ok(Self::SqrtEskf),
                     $($name => Ok(Self::$variant),)*
                     _ => Err(RegistryError::UnknownFilter { name: name.to_string(), valid: Self::NAMES }),
                 }
@@ -146,6 +148,7 @@ registry! {
     Mahony => "mahony", Mahony, MahonyParams, "Mahony explicit complementary filter with bias integral.";
     Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
     Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
+    SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.

@@ -8,6 +8,7 @@
 
 mod complementary;
 mod ekf;
+mod flagship;
 mod gyro;
 mod madgwick;
 mod mahony;
@@ -16,6 +17,7 @@ mod screen;
 
 pub use complementary::{Complementary, ComplementaryParams};
 pub use ekf::{Ekf, EkfParams};
+pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
 pub use madgwick::{Madgwick, MadgwickParams};
 pub use mahony::{Mahony, MahonyParams};

@@ -1,0 +1,209 @@
+//! The flagship filter `sqrt-eskf`: simulated scenarios with stated bounds, the square-root
+//! covariance under random (also bad) data in f32, f32 against f64, and its accessors.
+use proptest::prelude::*;
+use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse_attitude::metrics::{Alignment, evaluate};
+use rootfuse_attitude::registry::{FilterKind, FilterSpec};
+use rootfuse_attitude::sim::scenario;
+use rootfuse_attitude::{ImuSample, Lane, Mask, Mat, OrientationFilter, Quat, Recording, Vec3};
+
+fn params(dof: f64) -> SqrtEskfParams {
+    SqrtEskfParams {
+        dof,
+        ..SqrtEskfParams::default()
+    }
+}
+
+/// Runs the filter over a recording; returns the estimates and the filter.
+fn run<T: Lane>(
+    rec: &Recording,
+    dof: f64,
+    to: impl Fn(f64) -> T,
+    from: impl Fn(T) -> f64,
+) -> (Vec<Quat<f64>>, SqrtEskf<T>) {
+    let mut f = SqrtEskf::<T>::new(&params(dof));
+    let v = |x: Vec3<f64>| Vec3::new(to(x.x), to(x.y), to(x.z));
+    let est = (0..rec.len())
+        .map(|i| {
+            let s = rec.sample(i);
+            f.update(&ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)), to(rec.dt(i)));
+            let q = f.quat();
+            Quat::new(from(q.w), from(q.x), from(q.y), from(q.z))
+        })
+        .collect();
+    (est, f)
+}
+
+fn rmse64(rec: &Recording, dof: f64) -> (f64, f64) {
+    let (est, _) = run::<f64>(rec, dof, |x| x, |x| x);
+    let align = if dof > 7.5 {
+        Alignment::NineD
+    } else {
+        Alignment::SixD
+    };
+    let r = evaluate(rec, &est, align).unwrap();
+    (r.total, r.inclination)
+}
+
+/// Stated bounds (degrees, total RMSE 9D / 6D and inclination RMSE) on 60 s simulated
+/// scenarios at 100 Hz, seed 1. The bounds are about twice what the filter reaches, so
+/// they catch regressions without pinning noise.
+#[test]
+fn simulated_scenarios_within_bounds() {
+    // (scenario, 9D total, 6D total, inclination)
+    let cases = [
+        ("slow-rotation", 2.0, 2.0, 1.0),
+        // Known limitation: a 0.02 rad/s bias step (10× the BROAD bias) is tracked only at the
+        // bias random-walk rate (no step detection yet); the bound records today's behaviour.
+        ("bias-step", 12.0, 12.0, 5.0),
+        ("long-rest", 2.0, 2.0, 1.0),
+        ("magnetic-disturbance", 4.0, 3.0, 1.5),
+        ("translation", 3.0, 3.0, 2.0),
+        ("irregular-dt", 2.0, 2.0, 1.0),
+        ("vibration", 3.0, 6.0, 2.0),
+    ];
+    let mut failures = Vec::new();
+    for (name, b9, b6, bi) in cases {
+        let rec = scenario(name, 1, 60.0, 100.0).unwrap();
+        let (t9, i9) = rmse64(&rec, 9.0);
+        let (t6, i6) = rmse64(&rec, 6.0);
+        eprintln!("{name:>22}: 9D {t9:.2} / 6D {t6:.2} / incl {i9:.2} {i6:.2}");
+        if !(t9 < b9 && t6 < b6 && i9 < bi && i6 < bi) {
+            failures.push(format!(
+                "{name}: 9D {t9:.2} (<{b9}), 6D {t6:.2} (<{b6}), inclination {i9:.2}/{i6:.2} (<{bi})"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A magnetic disturbance must not tilt: the 9D inclination equals the 6D inclination
+/// (the magnetometer only rotates about earth-z), sample by sample.
+#[test]
+fn magnetometer_never_tilts() {
+    let rec = scenario("magnetic-disturbance", 2, 40.0, 100.0).unwrap();
+    let mut f = SqrtEskf::<f64>::new(&params(9.0));
+    let mut flagged = 0;
+    for i in 0..rec.len() {
+        f.update(&rec.sample(i), rec.dt(i));
+        let (_, i9) = f.quat9().heading_inclination();
+        let (_, i6) = f.quat6().heading_inclination();
+        assert!(i9.angle_to(i6) < 1e-9, "sample {i}");
+        flagged += f.mag_disturbed() as usize;
+    }
+    assert!(flagged > 0, "the disturbance was never detected");
+}
+
+/// The rest flag is raised during a long rest and the bias is learned there.
+#[test]
+fn rest_is_detected_and_bias_learned() {
+    let rec = scenario("long-rest", 3, 60.0, 100.0).unwrap();
+    let mut f = SqrtEskf::<f64>::new(&params(6.0));
+    let mut rest = 0usize;
+    for i in 0..rec.len() {
+        f.update(&rec.sample(i), rec.dt(i));
+        rest += f.at_rest() as usize;
+    }
+    // 80 % of the run is rest; allow the detection delay.
+    assert!(
+        rest as f64 > 0.6 * rec.len() as f64,
+        "rest {rest} of {}",
+        rec.len()
+    );
+    let sim = rootfuse_attitude::sim::scenario_simulation("long-rest", 3, 60.0, 100.0)
+        .unwrap()
+        .run()
+        .unwrap();
+    let true_bias = *sim.gyro_bias.last().unwrap();
+    let err = (f.bias() - true_bias).norm();
+    assert!(err < 2e-3, "bias error {err:e} rad/s");
+}
+
+/// f32 follows f64 closely on a long simulated run (max angle between the estimates).
+#[test]
+fn f32_agrees_with_f64() {
+    let rec = scenario("slow-rotation", 4, 120.0, 100.0).unwrap();
+    for dof in [6.0, 9.0] {
+        let (a, _) = run::<f64>(&rec, dof, |x| x, |x| x);
+        let (b, f) = run::<f32>(&rec, dof, |x| x as f32, |x| x as f64);
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| x.angle_to(*y))
+            .fold(0.0f64, f64::max)
+            .to_degrees();
+        assert!(worst < 0.1, "{dof}D: f32 vs f64 up to {worst:.4}°");
+        assert!(f.covariance().is_finite().all());
+    }
+}
+
+#[test]
+fn registered_with_alias() {
+    assert_eq!(
+        FilterSpec::new("flagship").unwrap().kind(),
+        FilterKind::SqrtEskf
+    );
+    assert_eq!(FilterKind::SqrtEskf.name(), "sqrt-eskf");
+}
+
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        8 => -20.0..20.0f64,
+        1 => prop::sample::select(vec![f64::NAN, f64::INFINITY, 0.0, 1e30, -1e20]),
+    ]
+}
+
+/// Symmetric positive (semi)definite in f32 with a bounded condition: `P = S·Sᵀ` has
+/// non-negative eigen-structure by construction; check `P` is finite, symmetric to rounding,
+/// has a positive diagonal and passes a Cholesky factorisation of `P + ε·I`.
+fn check_cov(f: &SqrtEskf<f32>) -> Result<(), TestCaseError> {
+    let p = f.covariance();
+    prop_assert!(p.is_finite().all(), "{p:?}");
+    for i in 0..6 {
+        prop_assert!(p.m[i][i] > 0.0, "diag {i}: {p:?}");
+        for j in 0..6 {
+            prop_assert!((p.m[i][j] - p.m[j][i]).abs() <= 1e-6 * (p.m[i][i] * p.m[j][j]).sqrt());
+        }
+    }
+    let eps = f32::from_f64(1e-12);
+    let (_, ok) = (p + Mat::identity().scale(eps)).cholesky();
+    prop_assert!(ok, "not PD: {p:?}");
+    let a = f.attitude_covariance();
+    prop_assert!(a.is_finite().all() && a.m[0][0] > 0.0 && a.m[2][2] > 0.0);
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// A long f32 run over random motion with bad samples mixed in keeps the covariance
+    /// symmetric positive definite and the quaternion unit.
+    #[test]
+    fn covariance_stays_pd_in_f32(
+        seed in 0u64..1000,
+        bad in prop::collection::vec((0usize..4000, prop::array::uniform9(value()), -1.0..0.1f64), 0..40),
+        dof in prop::sample::select(vec![6.0, 9.0]),
+    ) {
+        let rec = scenario("fast-rotation", seed, 40.0, 100.0).unwrap();
+        let mut f = SqrtEskf::<f32>::new(&params(dof));
+        let c = |v: Vec3<f64>| Vec3::new(v.x as f32, v.y as f32, v.z as f32);
+        for i in 0..rec.len() {
+            let s = rec.sample(i);
+            let (mut sample, mut dt) = (ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)), rec.dt(i) as f32);
+            if let Some((_, v, d)) = bad.iter().find(|(k, _, _)| *k == i) {
+                sample = ImuSample::new(
+                    Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32),
+                    Vec3::new(v[3] as f32, v[4] as f32, v[5] as f32),
+                    Vec3::new(v[6] as f32, v[7] as f32, v[8] as f32),
+                );
+                if *d < 0.0 { dt = *d as f32; }
+            }
+            f.update(&sample, dt);
+            if i % 500 == 0 {
+                check_cov(&f)?;
+            }
+            prop_assert!((f.quat().norm() - 1.0).abs() < 1e-5);
+        }
+        check_cov(&f)?;
+    }
+}
