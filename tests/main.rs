@@ -1,6 +1,7 @@
 //! The one integration-test binary of the workspace (see DESIGN.md: one binary links once).
 // Lane-by-lane loops index several arrays with the same lane number; that reads best as `i`.
 #![allow(clippy::needless_range_loop)]
+mod batch;
 mod batch_lsq;
 mod broad;
 mod common;

@@ -26,6 +26,7 @@ mod filters;
 mod plot;
 mod run;
 mod stress;
+mod throughput;
 
 /// Numerically robust estimation: attitude filters, least squares, SIMD batch processing.
 #[derive(Parser)]
@@ -47,6 +48,8 @@ enum Command {
     Filters,
     /// Numerical stress scenarios for every recursive least-squares form (f32 and f64).
     Stress(stress::StressArgs),
+    /// Channel-updates per second of a filter: scalar, SIMD lanes, and lanes on every core.
+    Throughput(throughput::ThroughputArgs),
 }
 
 /// How a command ended.
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(&args),
         Command::Eval(args) => eval::run(&args).map(|()| Outcome::Success),
         Command::Stress(args) => stress::run(&args).map(|()| Outcome::Success),
+        Command::Throughput(args) => throughput::run(&args).map(|()| Outcome::Success),
         Command::Filters => {
             filters::print();
             Ok(Outcome::Success)

@@ -1,6 +1,6 @@
 //! `rootfuse run`: filter IMU CSV files, write one estimate file per input.
 use crate::Outcome;
-use crate::engine::{Precision, run_recordings};
+use crate::engine::{PrecisionArg, run_recordings};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rootfuse_attitude::Recording;
@@ -29,7 +29,7 @@ pub struct RunArgs {
     out: PathBuf,
     /// Arithmetic precision.
     #[arg(long, value_enum, default_value = "f64")]
-    precision: Precision,
+    precision: PrecisionArg,
     /// Also write the gyro-bias estimate (`bx,by,bz`, rad/s).
     #[arg(long)]
     bias: bool,
@@ -86,7 +86,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     ));
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
     let start = Instant::now();
-    let outputs = run_recordings(&spec, &recs, args.precision);
+    let outputs = run_recordings(&spec, &recs, args.precision.into());
     let seconds = start.elapsed().as_secs_f64();
     spinner.finish_and_clear();
 

@@ -1,0 +1,354 @@
+//! [`Batch`]: N channels of one filter, [`Lane::LANES`] channels per chunk.
+
+use rayon::prelude::*;
+use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
+use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
+use rootfuse_lane::Counts;
+
+/// The time step fed to tail lanes (lanes past the last channel), s: a valid step, so those
+/// lanes run the ordinary code path on a sensor at rest instead of a degenerate one.
+pub const PAD_DT: f64 = 0.01;
+
+/// The sample fed to tail lanes and to lanes whose channel has no sample at a step: gyroscope
+/// zero, gravity along +z and a field of 64° dip towards north. It is consistent with the
+/// identity orientation, so a lane running it stays at rest and finite.
+pub fn pad_sample<S: Lane>() -> ImuSample<S> {
+    ImuSample::new(
+        Vec3::zero(),
+        Vec3::from_f64([0.0, 0.0, 9.81]),
+        Vec3::from_f64([0.0, 0.44, -0.9]),
+    )
+}
+
+/// Per-channel counts of skipped samples and corrections, by reason (see
+/// [`Rejections`](rootfuse_attitude::filters::Rejections)); steps where the channel had no
+/// sample (masked) are not counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RejectionTotals {
+    /// Whole samples skipped: `dt` not finite, `≤ 0` or above the filter's limit.
+    pub dt: u64,
+    /// Whole samples skipped: gyroscope not finite or saturated.
+    pub gyr: u64,
+    /// Accelerometer corrections skipped: not finite or zero.
+    pub acc: u64,
+    /// Magnetometer corrections skipped (9D only): absent, not finite or zero.
+    pub mag: u64,
+    /// Corrections skipped by the filter's own gate.
+    pub gated: u64,
+}
+
+/// One channel's input, sample by sample, in `f64` (converted to the lane's precision by
+/// rounding to nearest, exactly like `as f32`).
+pub trait ChannelSource: Sync {
+    /// Number of samples.
+    fn len(&self) -> usize;
+    /// True when there are no samples.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Sample `i` (`i < len()`).
+    fn sample(&self, i: usize) -> ImuSample<f64>;
+    /// Time step before sample `i`, s.
+    fn dt(&self, i: usize) -> f64;
+}
+
+impl ChannelSource for rootfuse_attitude::Recording {
+    fn len(&self) -> usize {
+        self.len()
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        self.sample(i)
+    }
+    fn dt(&self, i: usize) -> f64 {
+        self.dt(i)
+    }
+}
+
+/// Array-of-structs input of one channel: samples with the time step before each.
+/// The shorter of the two slices sets the length.
+#[derive(Clone, Copy, Debug)]
+pub struct Channel<'a> {
+    /// The samples.
+    pub samples: &'a [ImuSample<f64>],
+    /// The time step before each sample, s.
+    pub dt: &'a [f64],
+}
+
+impl ChannelSource for Channel<'_> {
+    fn len(&self) -> usize {
+        self.samples.len().min(self.dt.len())
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        self.samples[i]
+    }
+    fn dt(&self, i: usize) -> f64 {
+        self.dt[i]
+    }
+}
+
+/// A mask with lane `i` set where bit `i` of `bits` is set.
+#[inline]
+fn mask_from_bits<L: Lane>(bits: u64) -> L::Mask {
+    let one = <L::Scalar as Lane>::one();
+    let zero = <L::Scalar as Lane>::zero();
+    L::from_fn(|i| if (bits >> i) & 1 == 1 { one } else { zero }).simd_gt(L::zero())
+}
+
+#[inline]
+fn select_sample<L: Lane>(m: L::Mask, a: &ImuSample<L>, b: &ImuSample<L>) -> ImuSample<L> {
+    ImuSample::new(
+        Vec3::select(m, a.gyr, b.gyr),
+        Vec3::select(m, a.acc, b.acc),
+        Vec3::select(m, a.mag, b.mag),
+    )
+}
+
+#[inline]
+fn quat_f64<S: Lane + Into<f64>>(q: Quat<S>) -> Quat<f64> {
+    Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into())
+}
+
+#[inline]
+fn vec_f64<S: Lane + Into<f64>>(v: Vec3<S>) -> Vec3<f64> {
+    Vec3::new(v.x.into(), v.y.into(), v.z.into())
+}
+
+#[inline]
+fn sample_from_f64<S: Lane>(s: &ImuSample<f64>) -> ImuSample<S> {
+    let c = |v: Vec3<f64>| Vec3::from_f64([v.x, v.y, v.z]);
+    ImuSample::new(c(s.gyr), c(s.acc), c(s.mag))
+}
+
+/// [`Lane::LANES`] channels of one filter in one [`AnyFilter`], with the bookkeeping that makes
+/// unused and masked lanes invisible.
+#[derive(Clone, Debug)]
+pub struct Chunk<L: Lane> {
+    filter: AnyFilter<L>,
+    /// Bits of the lanes that carry a channel.
+    used: u64,
+    /// Per lane, the steps fed as a skip because the channel had no sample: the filter counts
+    /// them as `dt` rejections, which are subtracted when reporting.
+    masked: L::Counts,
+    pad: ImuSample<L>,
+    pad_dt: L,
+}
+
+impl<L: Lane> Chunk<L> {
+    fn new(spec: &FilterSpec, used_lanes: usize) -> Self {
+        let used = if used_lanes >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << used_lanes) - 1
+        };
+        Self {
+            filter: spec.build::<L>(),
+            used,
+            masked: L::Counts::default(),
+            pad: pad_sample::<L>(),
+            pad_dt: L::from_f64(PAD_DT),
+        }
+    }
+
+    /// Number of lanes that carry a channel (the last chunk may have fewer than `LANES`).
+    pub fn used_lanes(&self) -> usize {
+        self.used.count_ones() as usize
+    }
+
+    /// The filter of all lanes (unused lanes hold padding state: never report them).
+    pub fn filter(&self) -> &AnyFilter<L> {
+        &self.filter
+    }
+
+    /// One step with every used lane fed its sample (struct-of-arrays input). Unused tail lanes
+    /// get the padding sample whatever `sample` holds there.
+    #[inline]
+    pub fn update(&mut self, sample: &ImuSample<L>, dt: L) {
+        self.update_masked(sample, dt, u64::MAX);
+    }
+
+    /// One step where only the lanes whose bit is set in `active` have a sample; the other
+    /// used lanes are left as they are (see the crate docs on masking).
+    #[inline]
+    pub fn update_masked(&mut self, sample: &ImuSample<L>, dt: L, active: u64) {
+        let full = (1u64 << (L::LANES - 1) << 1).wrapping_sub(1);
+        let fed = active & self.used;
+        if fed | !full == u64::MAX {
+            // Every lane carries a channel with a sample: the common case, no selects.
+            self.filter.update(sample, dt);
+            return;
+        }
+        // Lanes without a channel get the padding sample with a valid step (they run the
+        // ordinary path); lanes whose channel has no sample get it with `dt = 0`, which the
+        // shared screening skips entirely for that lane (state untouched, counted as a `dt`
+        // rejection that `rejections` subtracts again).
+        let m = mask_from_bits::<L>(fed);
+        let tail = mask_from_bits::<L>(!self.used);
+        let s = select_sample(m, sample, &self.pad);
+        let dt = L::select(m, dt, L::select(tail, self.pad_dt, L::zero()));
+        self.filter.update(&s, dt);
+        self.masked.add_bitmask(self.used & !fed);
+    }
+
+    /// Orientation of lane `lane`, in `f64`.
+    pub fn quat(&self, lane: usize) -> Quat<f64> {
+        quat_f64(self.filter.quat().lane(lane))
+    }
+
+    /// Gyro-bias estimate of lane `lane`, rad/s, in `f64`.
+    pub fn bias(&self, lane: usize) -> Vec3<f64> {
+        vec_f64(self.filter.bias().lane(lane))
+    }
+
+    /// Rejection counters of lane `lane`, masked steps excluded.
+    pub fn rejections(&self, lane: usize) -> RejectionTotals {
+        let r = self.filter.rejections();
+        RejectionTotals {
+            dt: r.dt.as_ref()[lane].saturating_sub(self.masked.as_ref()[lane]),
+            gyr: r.gyr.as_ref()[lane],
+            acc: r.acc.as_ref()[lane],
+            mag: r.mag.as_ref()[lane],
+            gated: r.gated.as_ref()[lane],
+        }
+    }
+
+    /// Runs steps `steps` of the channels `sources` (at most `LANES`, one per used lane; a
+    /// channel shorter than a step is masked there), calling `each(step, chunk, active)`
+    /// after every step with the bits of the lanes that had a sample.
+    ///
+    /// Samples are packed into lanes one step at a time from a buffer of `LANES` entries
+    /// made once per call: nothing is allocated per update.
+    pub fn run_sources<S: ChannelSource>(
+        &mut self,
+        sources: &[S],
+        steps: core::ops::Range<usize>,
+        mut each: impl FnMut(usize, &Self, u64),
+    ) {
+        let n = sources.len().min(self.used_lanes());
+        let pad = pad_sample::<L::Scalar>();
+        let pad_dt = <L::Scalar as Lane>::from_f64(PAD_DT);
+        // Lanes past `n` keep the padding sample; `update_masked` decides what they get.
+        let mut buf = vec![(pad, pad_dt); L::LANES];
+        for k in steps {
+            let mut active = 0u64;
+            for (i, (src, slot)) in sources[..n].iter().zip(buf.iter_mut()).enumerate() {
+                if k < src.len() {
+                    let dt = <L::Scalar as Lane>::from_f64(src.dt(k));
+                    *slot = (sample_from_f64(&src.sample(k)), dt);
+                    active |= 1 << i;
+                }
+            }
+            let sample = ImuSample::new(
+                Vec3::from_lanes(|i| buf[i].0.gyr),
+                Vec3::from_lanes(|i| buf[i].0.acc),
+                Vec3::from_lanes(|i| buf[i].0.mag),
+            );
+            let dt = L::from_fn(|i| buf[i].1);
+            self.update_masked(&sample, dt, active);
+            each(k, self, active);
+        }
+    }
+}
+
+/// N channels of one registered filter, [`Lane::LANES`] channels per [`Chunk`].
+///
+/// Parameters are shared by all channels (one [`FilterSpec`]); state, time steps and
+/// rejection counters are per channel.
+///
+/// ```
+/// use rootfuse_attitude::registry::FilterSpec;
+/// use rootfuse_attitude::{ImuSample, Vec3};
+/// use rootfuse_batch::{Batch, Channel};
+/// use rootfuse_lane::wide::f32x8;
+///
+/// let spec = FilterSpec::new("mahony").unwrap();
+/// let mut batch = Batch::<f32x8>::new(&spec, 11); // two chunks, 5 tail lanes
+/// let at_rest = vec![ImuSample::six_d(Vec3::zero(), Vec3::new(0.0, 0.0, 9.81)); 100];
+/// let dt = vec![0.01; 100];
+/// let channels: Vec<Channel> = (0..11).map(|_| Channel { samples: &at_rest, dt: &dt }).collect();
+/// batch.run_channels(&channels);
+/// assert!((batch.quat(10).w - 1.0).abs() < 1e-6);
+/// assert_eq!(batch.rejections(3).acc, 0);
+/// ```
+#[derive(Clone, Debug)]
+pub struct Batch<L: Lane> {
+    channels: usize,
+    chunks: Vec<Chunk<L>>,
+}
+
+impl<L: Lane> Batch<L> {
+    /// `channels` fresh filters of `spec`.
+    pub fn new(spec: &FilterSpec, channels: usize) -> Self {
+        let chunks = (0..channels.div_ceil(L::LANES))
+            .map(|c| Chunk::new(spec, (channels - c * L::LANES).min(L::LANES)))
+            .collect();
+        Self { channels, chunks }
+    }
+
+    /// Number of channels.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// The chunks: channel `c` is lane `c % LANES` of chunk `c / LANES`.
+    pub fn chunks(&self) -> &[Chunk<L>] {
+        &self.chunks
+    }
+
+    /// The chunks, to drive them directly (e.g. from your own struct-of-arrays buffers).
+    pub fn chunks_mut(&mut self) -> &mut [Chunk<L>] {
+        &mut self.chunks
+    }
+
+    /// Orientation of channel `c`, in `f64` (panics if `c >= channels()`).
+    pub fn quat(&self, c: usize) -> Quat<f64> {
+        assert!(c < self.channels, "channel {c} out of range");
+        self.chunks[c / L::LANES].quat(c % L::LANES)
+    }
+
+    /// Gyro-bias estimate of channel `c`, rad/s, in `f64` (panics if `c >= channels()`).
+    pub fn bias(&self, c: usize) -> Vec3<f64> {
+        assert!(c < self.channels, "channel {c} out of range");
+        self.chunks[c / L::LANES].bias(c % L::LANES)
+    }
+
+    /// Rejection counters of channel `c` (panics if `c >= channels()`).
+    pub fn rejections(&self, c: usize) -> RejectionTotals {
+        assert!(c < self.channels, "channel {c} out of range");
+        self.chunks[c / L::LANES].rejections(c % L::LANES)
+    }
+
+    /// Feeds one block of struct-of-arrays input: `samples[c * steps + k]` and
+    /// `dt[c * steps + k]` are step `k` of chunk `c`, with `steps = samples.len() / chunks`.
+    /// Chunks run in parallel (rayon); each chunk's steps run in order, so the result does not
+    /// depend on the thread count. Extra entries past `chunks × steps` are ignored.
+    pub fn run_soa(&mut self, samples: &[ImuSample<L>], dt: &[L]) {
+        let chunks = self.chunks.len();
+        if chunks == 0 {
+            return;
+        }
+        let steps = samples.len().min(dt.len()) / chunks;
+        if steps == 0 {
+            return;
+        }
+        self.chunks
+            .par_iter_mut()
+            .zip(samples.par_chunks(steps).zip(dt.par_chunks(steps)))
+            .for_each(|(chunk, (s, d))| {
+                for (s, d) in s.iter().zip(d) {
+                    chunk.update(s, *d);
+                }
+            });
+    }
+
+    /// Feeds one block of array-of-structs input, one entry per channel (extra entries are
+    /// ignored, missing ones are masked); channels of different lengths are allowed, a channel
+    /// is masked at the steps past its end. Chunks run in parallel (rayon).
+    pub fn run_channels<S: ChannelSource>(&mut self, channels: &[S]) {
+        let steps = channels.iter().map(|c| c.len()).max().unwrap_or(0);
+        let channels = &channels[..channels.len().min(self.channels)];
+        self.chunks
+            .par_iter_mut()
+            .zip(channels.par_chunks(L::LANES))
+            .for_each(|(chunk, srcs)| chunk.run_sources(srcs, 0..steps, |_, _, _| {}));
+    }
+}

@@ -1,0 +1,325 @@
+//! The batch engine: every registered filter in lanes equals per-channel scalar runs bit for
+//! bit (bad samples in single channels, ragged lengths, tail lanes, masked steps), and results
+//! do not depend on the thread count.
+use crate::common::same_bits;
+use rootfuse::batch::{
+    Batch, Channel, ChannelOutput, Precision, RejectionTotals, run_recordings,
+    state_bytes_per_channel,
+};
+use rootfuse_attitude::registry::{FilterKind, FilterSpec};
+use rootfuse_attitude::sim::{scenario, scenario_names};
+use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+
+/// One channel alone through the scalar filter, as `run_recordings` promises to reproduce.
+fn scalar_run<S: Lane + Into<f64>>(spec: &FilterSpec, rec: &Recording) -> ChannelOutput {
+    let mut f = spec.build::<S>();
+    let mut out = ChannelOutput::default();
+    for k in 0..rec.len() {
+        let s = rec.sample(k);
+        let c = |v: Vec3<f64>| Vec3::<S>::from_f64([v.x, v.y, v.z]);
+        f.update(
+            &ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
+            S::from_f64(rec.dt(k)),
+        );
+        let (q, b) = (f.quat(), f.bias());
+        out.quat
+            .push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
+        out.bias.push(Vec3::new(b.x.into(), b.y.into(), b.z.into()));
+    }
+    let r = f.rejections();
+    out.rejections = RejectionTotals {
+        dt: r.dt.as_ref()[0],
+        gyr: r.gyr.as_ref()[0],
+        acc: r.acc.as_ref()[0],
+        mag: r.mag.as_ref()[0],
+        gated: r.gated.as_ref()[0],
+    };
+    out
+}
+
+fn assert_same(a: &ChannelOutput, b: &ChannelOutput, what: &str) {
+    assert_eq!(a.quat.len(), b.quat.len(), "{what}: length");
+    assert_eq!(a.rejections, b.rejections, "{what}: counters");
+    for (k, (qa, qb)) in a.quat.iter().zip(&b.quat).enumerate() {
+        let same = qa
+            .to_array()
+            .into_iter()
+            .zip(qb.to_array())
+            .all(|(x, y)| same_bits(x, y));
+        assert!(same, "{what}: quat at step {k}: {qa:?} vs {qb:?}");
+    }
+    for (k, (ba, bb)) in a.bias.iter().zip(&b.bias).enumerate() {
+        let same = ba
+            .to_array()
+            .into_iter()
+            .zip(bb.to_array())
+            .all(|(x, y)| same_bits(x, y));
+        assert!(same, "{what}: bias at step {k}: {ba:?} vs {bb:?}");
+    }
+}
+
+/// `n` simulated recordings of different scenarios, lengths and rates; every third one drops
+/// its magnetometer (6D data into 9D filters), and single channels get NaN, zero and huge
+/// samples and bad time steps (negative, NaN, zero, a 5 s gap).
+fn recordings(n: usize) -> Vec<Recording> {
+    let names: Vec<&str> = scenario_names().collect();
+    (0..n)
+        .map(|i| {
+            let duration = 0.6 + 0.25 * (i % 5) as f64;
+            let rate = [100.0, 150.0, 200.0][i % 3];
+            let mut rec = scenario(names[i % names.len()], i as u64, duration, rate).unwrap();
+            if i % 3 == 2 {
+                rec.mag = None;
+            }
+            if i % 2 == 1 {
+                let len = rec.len();
+                let at = |f: f64| ((len as f64 * f) as usize).min(len - 1);
+                rec.gyr[at(0.2)] = Vec3::new(f64::NAN, 0.0, 0.0);
+                rec.acc[at(0.3)] = Vec3::zero();
+                rec.acc[at(0.35)] = Vec3::new(1e30, 1e30, 1e30);
+                rec.gyr[at(0.4)] = Vec3::new(1e20, -1e20, 1e20);
+                if let Some(mag) = &mut rec.mag {
+                    mag[at(0.45)] = Vec3::new(f64::INFINITY, 0.0, 0.0);
+                    mag[at(0.5)] = Vec3::zero();
+                }
+                let k = at(0.6);
+                rec.t[k] = rec.t[k - 1] - 0.01; // negative step, then a double one
+                rec.t[at(0.7)] = f64::NAN; // NaN steps on both sides
+                let k = at(0.8);
+                let gap = 5.0;
+                for t in &mut rec.t[k..] {
+                    *t += gap; // one step beyond max_dt
+                }
+                rec.t[at(0.9)] = rec.t[at(0.9) - 1]; // zero step
+            }
+            rec
+        })
+        .collect()
+}
+
+fn specs() -> Vec<(FilterSpec, u8)> {
+    let mut out = Vec::new();
+    for &kind in FilterKind::ALL {
+        for dof in [6u8, 9] {
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            out.push((spec, dof));
+        }
+    }
+    out
+}
+
+/// The core promise: for every registered filter, 6D and 9D, f32x8 and f64x4, channel counts
+/// 1, 7 and 13 (tail lanes in both widths) with ragged lengths and bad data in single
+/// channels, `run_recordings` equals the per-channel scalar runs bit for bit, counters too.
+#[test]
+fn every_filter_equals_scalar_runs() {
+    let all = recordings(13);
+    for (spec, dof) in specs() {
+        for n in [1usize, 7, 13] {
+            let recs = &all[13 - n..];
+            let f32_out = run_recordings(&spec, recs, Precision::F32);
+            let f64_out = run_recordings(&spec, recs, Precision::F64);
+            assert_eq!((f32_out.len(), f64_out.len()), (n, n));
+            for (i, rec) in recs.iter().enumerate() {
+                let what = |p: &str| {
+                    format!(
+                        "{} {dof}D {p}, {n} channels, channel {i}",
+                        spec.kind().name()
+                    )
+                };
+                assert_same(&f32_out[i], &scalar_run::<f32>(&spec, rec), &what("f32"));
+                assert_same(&f64_out[i], &scalar_run::<f64>(&spec, rec), &what("f64"));
+            }
+        }
+    }
+}
+
+/// The bad data above is really exercised: the counters see it.
+#[test]
+fn bad_data_is_counted() {
+    let recs = recordings(2);
+    let spec = FilterSpec::new("mahony").unwrap();
+    let out = run_recordings(&spec, &recs, Precision::F32);
+    let (clean, bad) = (&out[0].rejections, &out[1].rejections);
+    assert_eq!(clean.dt, 0);
+    assert!(bad.dt >= 5 && bad.gyr >= 1 && bad.acc >= 2, "{bad:?}");
+}
+
+/// Masked steps (a channel without a sample) leave the channel exactly as if the step did not
+/// exist: `update_masked` with random holes equals scalar runs that skip them, every filter.
+#[test]
+fn masked_steps_are_invisible() {
+    type V = rootfuse_lane::wide::f64x4;
+    let recs = recordings(6);
+    let len = recs.iter().map(Recording::len).min().unwrap();
+    // Lane i has no sample at step k when this says so (deterministic, different per lane).
+    let hole = |i: usize, k: usize| (k * 7 + i * 13).is_multiple_of(5 + i);
+    for (spec, dof) in specs() {
+        let mut batch = Batch::<V>::new(&spec, recs.len());
+        for k in 0..len {
+            for (c, chunk) in batch.chunks_mut().iter_mut().enumerate() {
+                let ch = |i: usize| recs.get(c * 4 + i).unwrap_or(&recs[0]);
+                let sample = |i: usize| ch(i).sample(k);
+                let s = ImuSample::new(
+                    Vec3::<V>::from_lanes(|i| sample(i).gyr),
+                    Vec3::<V>::from_lanes(|i| sample(i).acc),
+                    Vec3::<V>::from_lanes(|i| sample(i).mag),
+                );
+                let active = (0..4)
+                    .filter(|&i| !hole(c * 4 + i, k))
+                    .fold(0u64, |m, i| m | 1 << i);
+                chunk.update_masked(&s, V::from_fn(|i| ch(i).dt(k)), active);
+            }
+        }
+        for (c, rec) in recs.iter().enumerate() {
+            let mut f = spec.build::<f64>();
+            for k in (0..len).filter(|&k| !hole(c, k)) {
+                f.update(&rec.sample(k), rec.dt(k));
+            }
+            let what = format!("{} {dof}D channel {c}", spec.kind().name());
+            let (a, b) = (batch.quat(c), f.quat());
+            assert!(
+                a.to_array()
+                    .into_iter()
+                    .zip(b.to_array())
+                    .all(|(x, y)| same_bits(x, y)),
+                "{what}: {a:?} vs {b:?}"
+            );
+            let r = f.rejections();
+            let expect = RejectionTotals {
+                dt: r.dt[0],
+                gyr: r.gyr[0],
+                acc: r.acc[0],
+                mag: r.mag[0],
+                gated: r.gated[0],
+            };
+            assert_eq!(batch.rejections(c), expect, "{what}");
+        }
+    }
+}
+
+/// Struct-of-arrays blocks and array-of-structs input give the same states; blocks can be fed
+/// one after another (streaming).
+#[test]
+fn soa_blocks_equal_channel_input() {
+    type V = rootfuse_lane::wide::f32x8;
+    let recs = recordings(11);
+    let len = recs.iter().map(Recording::len).min().unwrap();
+    let spec = FilterSpec::new("ekf").unwrap();
+    // Array-of-structs in two blocks.
+    let aos: Vec<(Vec<ImuSample<f64>>, Vec<f64>)> = recs
+        .iter()
+        .map(|r| {
+            (
+                (0..len).map(|k| r.sample(k)).collect(),
+                (0..len).map(|k| r.dt(k)).collect(),
+            )
+        })
+        .collect();
+    let mut by_channel = Batch::<V>::new(&spec, recs.len());
+    let half = len / 2;
+    for range in [0..half, half..len] {
+        let block: Vec<Channel> = aos
+            .iter()
+            .map(|(s, d)| Channel {
+                samples: &s[range.clone()],
+                dt: &d[range.clone()],
+            })
+            .collect();
+        by_channel.run_channels(&block);
+    }
+    // Struct-of-arrays, one block: step k of chunk c at c * len + k.
+    let chunks = by_channel.chunks().len();
+    let mut samples = Vec::with_capacity(chunks * len);
+    let mut dts = Vec::with_capacity(chunks * len);
+    for c in 0..chunks {
+        for k in 0..len {
+            // Tail lanes hold garbage here on purpose: the engine must pad them itself.
+            let get = |i: usize| recs.get(c * 8 + i).map(|r| r.sample(k));
+            let bad = ImuSample::new(Vec3::zero(), Vec3::zero(), Vec3::zero());
+            let lane = |i: usize| {
+                let s = get(i).unwrap_or(bad);
+                let f = |v: Vec3<f64>| Vec3::new(v.x as f32, v.y as f32, v.z as f32);
+                ImuSample::new(f(s.gyr), f(s.acc), f(s.mag))
+            };
+            samples.push(ImuSample::new(
+                Vec3::<V>::from_lanes(|i| lane(i).gyr),
+                Vec3::<V>::from_lanes(|i| lane(i).acc),
+                Vec3::<V>::from_lanes(|i| lane(i).mag),
+            ));
+            dts.push(V::from_fn(|i| {
+                recs.get(c * 8 + i).map_or(-1.0, |r| r.dt(k) as f32)
+            }));
+        }
+    }
+    let mut by_block = Batch::<V>::new(&spec, recs.len());
+    by_block.run_soa(&samples, &dts);
+    for c in 0..recs.len() {
+        assert_eq!(by_block.quat(c), by_channel.quat(c), "channel {c}");
+        assert_eq!(by_block.bias(c), by_channel.bias(c), "channel {c}");
+        assert_eq!(
+            by_block.rejections(c),
+            by_channel.rejections(c),
+            "channel {c}"
+        );
+    }
+}
+
+/// One thread or two: the same bits.
+#[test]
+fn thread_count_does_not_change_results() {
+    let recs = recordings(13);
+    let spec = FilterSpec::new("madgwick").unwrap();
+    let run = |threads: usize| {
+        let pool = rootfuse::batch::rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            (
+                run_recordings(&spec, &recs, Precision::F32),
+                run_recordings(&spec, &recs, Precision::F64),
+            )
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    for (i, (a, b)) in one.0.iter().zip(&two.0).enumerate() {
+        assert_same(a, b, &format!("f32 channel {i}"));
+    }
+    for (i, (a, b)) in one.1.iter().zip(&two.1).enumerate() {
+        assert_same(a, b, &format!("f64 channel {i}"));
+    }
+}
+
+#[test]
+fn empty_inputs_and_throughput_report() {
+    let spec = FilterSpec::new("mahony").unwrap();
+    assert!(run_recordings(&spec, &[], Precision::F32).is_empty());
+    let empty = Recording::default();
+    let out = run_recordings(&spec, &[empty], Precision::F64);
+    assert!(out[0].quat.is_empty() && out[0].rejections == RejectionTotals::default());
+    assert!(state_bytes_per_channel::<rootfuse_lane::wide::f32x8>() > 0);
+
+    let report = rootfuse::batch::throughput(&spec, 9, 20);
+    let modes: Vec<_> = report.results.iter().map(|r| r.mode).collect();
+    assert_eq!(
+        modes,
+        [
+            "scalar-f32",
+            "scalar-f64",
+            "lanes-f32x8",
+            "lanes-f64x4",
+            "lanes-f32x8-threads"
+        ]
+    );
+    assert!(
+        report
+            .results
+            .iter()
+            .all(|r| r.updates_per_s > 0.0 && r.ns_per_update > 0.0)
+    );
+    let json = report.to_json();
+    assert!(json.starts_with(r#"{"filter":"mahony","channels":9,"samples":20,"results":[{"mode":"scalar-f32","updates_per_s":"#), "{json}");
+    assert!(json.ends_with("}]}"), "{json}");
+}
