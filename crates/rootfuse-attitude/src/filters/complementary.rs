@@ -65,12 +65,7 @@ pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
 
 impl<T: Lane> OrientationFilter<T> for Complementary<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
-        if self.nine_d {
-            s.count_mag(&mut self.rejections);
-        } else {
-            s = s.without_mag();
-        }
+        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
         let mut q = integrate_gyro(q0, s.gyr, s.dt);
 

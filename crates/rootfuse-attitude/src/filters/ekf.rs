@@ -140,12 +140,7 @@ impl<T: Lane> Ekf<T> {
 
 impl<T: Lane> OrientationFilter<T> for Ekf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
-        if self.nine_d {
-            s.count_mag(&mut self.rejections);
-        } else {
-            s = s.without_mag();
-        }
+        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let (q_prev, b_prev, p_prev) = (self.q, self.bias, self.p);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 

@@ -709,12 +709,7 @@ fn select_state<T: Lane>(mask: T::Mask, a: &SqrtEskf<T>, b: &SqrtEskf<T>) -> Sqr
 
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
-        if self.nine_d {
-            s.count_mag(&mut self.rejections);
-        } else {
-            s = s.without_mag();
-        }
+        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         // Lanes that cannot step keep their whole state; lanes not yet initialised only
         // wait for a usable accelerometer.
         let before = self.clone();

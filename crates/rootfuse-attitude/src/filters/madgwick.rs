@@ -65,12 +65,7 @@ fn gradient<T: Lane>(q: Quat<T>, d: Vec3<T>, s: Vec3<T>) -> Quat<T> {
 
 impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
-        if self.nine_d {
-            s.count_mag(&mut self.rejections);
-        } else {
-            s = s.without_mag();
-        }
+        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
         let zero = Quat::new(T::zero(), T::zero(), T::zero(), T::zero());

@@ -67,12 +67,7 @@ impl<T: Lane> Mahony<T> {
 
 impl<T: Lane> OrientationFilter<T> for Mahony<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
-        if self.nine_d {
-            s.count_mag(&mut self.rejections);
-        } else {
-            s = s.without_mag();
-        }
+        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
         let v_hat = q.rotate_inverse(up());

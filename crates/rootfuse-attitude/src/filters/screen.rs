@@ -109,6 +109,24 @@ impl<T: Lane> Screened<T> {
         }
     }
 
+    /// Screens `sample` for a filter running in 9D (`nine_d`: an unusable magnetometer is
+    /// counted) or 6D (the magnetometer is ignored, uncounted).
+    pub fn for_dof(
+        sample: &ImuSample<T>,
+        dt: T,
+        limits: &ScreenLimits,
+        counts: &mut Rejections<T>,
+        nine_d: bool,
+    ) -> Self {
+        let s = Self::new(sample, dt, limits, counts);
+        if nine_d {
+            s.count_mag(counts);
+            s
+        } else {
+            s.without_mag()
+        }
+    }
+
     /// Marks the magnetometer unusable (6D operation) without counting it.
     pub fn without_mag(mut self) -> Self {
         self.mag_ok = <T::Mask as Mask>::splat(false);
