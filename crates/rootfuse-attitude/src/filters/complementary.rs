@@ -74,10 +74,13 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
         let q_acc = (Quat::from_rotation_vector(tilt) * q).normalize();
         q = Quat::select(s.acc_ok, q_acc, q);
 
-        let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
-        let k_mag = (s.dt / self.tau_mag).min(T::one());
-        let q_mag = (Quat::from_heading(dpsi * k_mag) * q).normalize();
-        q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
+        // 6D is the same for every lane and discards this correction: skipping it changes no bits.
+        if self.nine_d {
+            let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
+            let k_mag = (s.dt / self.tau_mag).min(T::one());
+            let q_mag = (Quat::from_heading(dpsi * k_mag) * q).normalize();
+            q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
+        }
 
         self.q = Quat::select(s.step, q, self.q);
     }

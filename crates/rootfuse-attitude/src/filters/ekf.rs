@@ -187,8 +187,11 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
         let acc_in_gate = (s.acc_norm - self.gravity).abs().simd_le(self.acc_gate);
         T::count(&mut self.rejections.gated, s.acc_ok & !acc_in_gate);
         self.correct(up(), s.acc, self.acc_var, s.acc_ok & acc_in_gate);
-        let b = mag_reference(self.q, s.mag).try_normalize().0;
-        self.correct(b, s.mag, self.mag_var, s.mag_ok);
+        // 6D is the same for every lane and discards this update: skipping it changes no bits.
+        if self.nine_d {
+            let b = mag_reference(self.q, s.mag).try_normalize().0;
+            self.correct(b, s.mag, self.mag_var, s.mag_ok);
+        }
 
         self.q = Quat::select(s.step, self.q, q_prev);
         self.bias = Vec3::select(s.step, self.bias, b_prev);

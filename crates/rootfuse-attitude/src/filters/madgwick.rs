@@ -70,7 +70,12 @@ impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
 
         let zero = Quat::new(T::zero(), T::zero(), T::zero(), T::zero());
         let g_acc = Quat::select(s.acc_ok, gradient(q, up(), s.acc), zero);
-        let g_mag = Quat::select(s.mag_ok, gradient(q, mag_reference(q, s.mag), s.mag), zero);
+        // 6D is the same for every lane and discards this term: skipping it changes no bits.
+        let g_mag = if self.nine_d {
+            Quat::select(s.mag_ok, gradient(q, mag_reference(q, s.mag), s.mag), zero)
+        } else {
+            zero
+        };
         let (step, has_step) = (g_acc + g_mag).try_normalize();
         let step = Quat::select(has_step, step, zero);
 

@@ -72,8 +72,13 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
 
         let v_hat = q.rotate_inverse(up());
         let e_acc = Vec3::select(s.acc_ok, s.acc.cross(v_hat), Vec3::zero());
-        let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
-        let e_mag = Vec3::select(s.mag_ok & heading_ok, v_hat * dpsi, Vec3::zero());
+        // 6D is the same for every lane and discards this term: skipping it changes no bits.
+        let e_mag = if self.nine_d {
+            let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
+            Vec3::select(s.mag_ok & heading_ok, v_hat * dpsi, Vec3::zero())
+        } else {
+            Vec3::zero()
+        };
         let e = e_acc + e_mag;
 
         let learn = e.norm().simd_lt(self.bias_gate);
