@@ -312,26 +312,7 @@ pub fn read_csv_from<R: std::io::Read>(
     let mut use_mask = layout.use_col.map(|_| Vec::new());
     let mut previous_t = f64::NEG_INFINITY;
 
-    loop {
-        let got = rdr
-            .read_byte_record(&mut record)
-            .map_err(|e| csv_error(file, e))?;
-        if !got {
-            break;
-        }
-        let line = record.position().map_or(0, |p| p.line());
-        // A blank line at the end of a file (or an editor's trailing newline) is not a row.
-        if record.len() == 1 && trim(&record[0]).is_empty() {
-            continue;
-        }
-        if record.len() != n_fields {
-            return Err(ReadError::FieldCount {
-                file: file.to_owned(),
-                line,
-                expected: n_fields,
-                found: record.len(),
-            });
-        }
+    while let Some(line) = next_row(&mut rdr, &mut record, file, n_fields)? {
         let cell = |col: usize| -> Result<f64, ReadError> {
             parse_f64(&record[col]).ok_or_else(|| ReadError::NotNumeric {
                 file: file.to_owned(),
@@ -484,22 +465,7 @@ pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
             })?;
     }
     let mut est = Estimates::default();
-    while rdr
-        .read_byte_record(&mut record)
-        .map_err(|e| csv_error(file, e))?
-    {
-        let line = record.position().map_or(0, |p| p.line());
-        if record.len() == 1 && trim(&record[0]).is_empty() {
-            continue;
-        }
-        if record.len() != header.len() {
-            return Err(ReadError::FieldCount {
-                file: file.to_owned(),
-                line,
-                expected: header.len(),
-                found: record.len(),
-            });
-        }
+    while let Some(line) = next_row(&mut rdr, &mut record, file, header.len())? {
         let mut v = [0.0; 5];
         for (k, &c) in cols.iter().enumerate() {
             let text = || String::from_utf8_lossy(&record[c]).into_owned();
@@ -592,6 +558,36 @@ impl Layout {
     }
 }
 
+/// Reads the next data row into `record` and returns its 1-based line, or `None` at the end.
+/// A blank line (an editor's trailing newline) is not a row; a row whose field count differs
+/// from the header's is an error naming its line.
+fn next_row<R: std::io::Read>(
+    rdr: &mut csv::Reader<R>,
+    record: &mut csv::ByteRecord,
+    file: &Path,
+    n_fields: usize,
+) -> Result<Option<u64>, ReadError> {
+    while rdr
+        .read_byte_record(record)
+        .map_err(|e| csv_error(file, e))?
+    {
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() == 1 && trim(&record[0]).is_empty() {
+            continue;
+        }
+        if record.len() != n_fields {
+            return Err(ReadError::FieldCount {
+                file: file.to_owned(),
+                line,
+                expected: n_fields,
+                found: record.len(),
+            });
+        }
+        return Ok(Some(line));
+    }
+    Ok(None)
+}
+
 fn csv_error(file: &Path, e: csv::Error) -> ReadError {
     let line = e.position().map_or(0, |p| p.line());
     match e.into_kind() {
@@ -669,22 +665,7 @@ pub fn read_index(path: impl AsRef<Path>) -> Result<Vec<IndexEntry>, ReadError> 
         find("duration_s"),
     );
     let mut out = Vec::new();
-    while rdr
-        .read_byte_record(&mut record)
-        .map_err(|e| csv_error(path, e))?
-    {
-        let line = record.position().map_or(0, |p| p.line());
-        if record.len() == 1 && trim(&record[0]).is_empty() {
-            continue;
-        }
-        if record.len() != header.len() {
-            return Err(ReadError::FieldCount {
-                file: path.to_owned(),
-                line,
-                expected: header.len(),
-                found: record.len(),
-            });
-        }
+    while let Some(line) = next_row(&mut rdr, &mut record, path, header.len())? {
         let text = |c: usize| String::from_utf8_lossy(trim(&record[c])).into_owned();
         let not_numeric = |c: usize| ReadError::NotNumeric {
             file: path.to_owned(),
