@@ -3,8 +3,8 @@
 //! do not depend on the thread count.
 use crate::common::same_bits;
 use rootfuse::batch::{
-    Batch, Channel, ChannelOutput, Precision, RejectionTotals, run_recordings,
-    state_bytes_per_channel,
+    Batch, Channel, ChannelOutput, Columns, Precision, RejectionTotals, flag, run_recordings,
+    run_recordings_with, state_bytes_per_channel,
 };
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::sim::{scenario, scenario_names};
@@ -322,4 +322,74 @@ fn empty_inputs_and_throughput_report() {
     let json = report.to_json();
     assert!(json.starts_with(r#"{"filter":"mahony","channels":9,"samples":20,"results":[{"mode":"scalar-f32","updates_per_s":"#), "{json}");
     assert!(json.ends_with("}]}"), "{json}");
+}
+
+/// The optional series: covariance and flags equal what the scalar filter reports after each
+/// sample (bit for bit), flags mark exactly the samples whose counters grew, and switched-off
+/// series stay empty.
+#[test]
+fn covariance_and_flags_equal_scalar_runs() {
+    let recs = recordings(5);
+    let columns = Columns {
+        bias: false,
+        covariance: true,
+        flags: true,
+    };
+    for name in ["sqrt-eskf", "ekf", "mahony"] {
+        for dof in [6u8, 9] {
+            let mut spec = FilterSpec::new(name).unwrap();
+            spec.set_dof(dof).unwrap();
+            let out = run_recordings_with(&spec, &recs, Precision::F64, columns);
+            for (c, (rec, o)) in recs.iter().zip(&out).enumerate() {
+                let what = format!("{name} {dof}D channel {c}");
+                assert!(o.bias.is_empty(), "{what}");
+                assert_eq!(o.flags.len(), rec.len(), "{what}");
+                let mut f = spec.build::<f64>();
+                let mut before = *f.rejections();
+                for k in 0..rec.len() {
+                    f.update(&rec.sample(k), rec.dt(k));
+                    let r = f.rejections();
+                    let grew = |now: &[u64; 1], then: &[u64; 1], bit: u8| {
+                        if now[0] > then[0] { bit } else { 0 }
+                    };
+                    let expected = grew(&r.dt, &before.dt, flag::DT)
+                        | grew(&r.gyr, &before.gyr, flag::GYR)
+                        | grew(&r.acc, &before.acc, flag::ACC)
+                        | grew(&r.mag, &before.mag, flag::MAG)
+                        | grew(&r.gated, &before.gated, flag::GATED);
+                    assert_eq!(o.flags[k], expected, "{what}: flags at {k}");
+                    before = *r;
+                    match f.attitude_covariance() {
+                        None => assert!(o.covariance.is_empty(), "{what}"),
+                        Some(p) => {
+                            let want = [
+                                p.m[0][0], p.m[0][1], p.m[0][2], p.m[1][1], p.m[1][2], p.m[2][2],
+                            ];
+                            let same = want
+                                .iter()
+                                .zip(&o.covariance[k])
+                                .all(|(a, b)| same_bits(*a, *b));
+                            assert!(same, "{what}: covariance at {k}");
+                        }
+                    }
+                }
+            }
+            // The channels with bad data are flagged where they were damaged.
+            assert!(
+                out[1].flags.iter().any(|&f| f & flag::GYR != 0),
+                "{name} {dof}D"
+            );
+            assert!(
+                out[1].flags.iter().any(|&f| f & flag::DT != 0),
+                "{name} {dof}D"
+            );
+            assert!(
+                out[0]
+                    .flags
+                    .iter()
+                    .all(|&f| f & (flag::GYR | flag::DT) == 0),
+                "{name} {dof}D"
+            );
+        }
+    }
 }

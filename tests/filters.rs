@@ -282,3 +282,57 @@ fn registry_names_and_errors() {
         }
     }
 }
+
+/// Filters that carry a covariance report one that is symmetric positive semi-definite at
+/// every step and says what is observable: in 6D the heading variance ends far above the
+/// inclination variances (gravity carries no heading; it can shrink only through what is
+/// learnt of the bias, never below what the gyro noise added); the magnetometer (9D) brings it
+/// down (measured at 40 s: 6D heading/tilt variance 2200× for ekf, 118× for sqrt-eskf;
+/// 9D/6D heading variance 0.003 and 0.06).
+#[test]
+fn attitude_covariance_says_what_is_observable() {
+    let (samples, _) = motion(40.0, Vec3::new(0.01, -0.02, 0.015), Quat::identity());
+    let mut carrying = 0;
+    for &kind in FilterKind::ALL {
+        let mut end_heading_var = [0.0; 2];
+        for (d, dof) in [6u8, 9].into_iter().enumerate() {
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            let mut f = spec.build::<f64>();
+            let what = format!("{} {dof}D", kind.name());
+            for (k, s) in samples.iter().enumerate() {
+                f.update(s, 0.01);
+                let Some(p) = f.attitude_covariance() else {
+                    break;
+                };
+                let m = p.m;
+                let sym = (0..3).all(|i| (0..3).all(|j| m[i][j] == m[j][i]));
+                let minor2 = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+                let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                    - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                    + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+                let scale = m[0][0] * m[1][1] * m[2][2];
+                assert!(
+                    sym && m[0][0] > 0.0 && minor2 > 0.0 && det > -1e-9 * scale,
+                    "{what} at {k}: {m:?}"
+                );
+                end_heading_var[d] = m[2][2];
+                if k == samples.len() - 1 && dof == 6 {
+                    let tilt_var = m[0][0].max(m[1][1]);
+                    assert!(m[2][2] > 10.0 * tilt_var, "{what}: {m:?}");
+                }
+            }
+        }
+        if end_heading_var[0] > 0.0 {
+            carrying += 1;
+            let what = kind.name();
+            assert!(
+                end_heading_var[1] < 0.2 * end_heading_var[0],
+                "{what}: 9D {} vs 6D {}",
+                end_heading_var[1],
+                end_heading_var[0]
+            );
+        }
+    }
+    assert!(carrying >= 2, "sqrt-eskf and ekf carry a covariance");
+}

@@ -18,7 +18,7 @@
 use crate::filters::*;
 use crate::{ImuSample, Quat, Vec3};
 use core::fmt;
-use rootfuse_lane::Lane;
+use rootfuse_lane::{Lane, Mat};
 use std::string::{String, ToString};
 
 /// Why a filter could not be selected or configured.
@@ -137,6 +137,10 @@ macro_rules! registry {
             #[inline]
             fn rejections(&self) -> &Rejections<T> {
                 match self { $(Self::$variant(f) => f.rejections(),)* }
+            }
+            #[inline]
+            fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
+                match self { $(Self::$variant(f) => OrientationFilter::attitude_covariance(f),)* }
             }
         }
     };

@@ -83,7 +83,10 @@ mod throughput;
 pub use rayon;
 
 pub use batch::{Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, pad_sample};
-pub use recordings::{ChannelOutput, Precision, run_recordings, run_sources};
+pub use recordings::{
+    ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
+    run_sources_with,
+};
 pub use throughput::{ModeResult, ThroughputReport, throughput};
 
 /// State bytes per channel of a batch over lanes `L`: `size_of::<AnyFilter<L>>() / LANES`

@@ -15,13 +15,75 @@ pub enum Precision {
     F64,
 }
 
+/// Which per-sample series [`run_recordings_with`] collects besides the orientation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Columns {
+    /// The gyro-bias estimate ([`ChannelOutput::bias`]).
+    pub bias: bool,
+    /// The attitude-error covariance ([`ChannelOutput::covariance`]); filters without one
+    /// leave it empty.
+    pub covariance: bool,
+    /// What was skipped at each sample ([`ChannelOutput::flags`]).
+    pub flags: bool,
+}
+
+impl Default for Columns {
+    /// The bias only, what [`run_recordings`] collects.
+    fn default() -> Self {
+        Self {
+            bias: true,
+            covariance: false,
+            flags: false,
+        }
+    }
+}
+
+/// Bits of [`ChannelOutput::flags`]: which counter of [`RejectionTotals`] the sample raised.
+pub mod flag {
+    /// The whole sample was skipped: `dt` unusable.
+    pub const DT: u8 = 1;
+    /// The whole sample was skipped: gyroscope unusable.
+    pub const GYR: u8 = 2;
+    /// The accelerometer correction was skipped: not finite or zero.
+    pub const ACC: u8 = 4;
+    /// The magnetometer correction was skipped (9D): absent, not finite or zero.
+    pub const MAG: u8 = 8;
+    /// A correction was skipped by the filter's own gate.
+    pub const GATED: u8 = 16;
+}
+
+impl RejectionTotals {
+    /// The [`flag`] bits of the counters that grew since `earlier`.
+    pub fn flags_since(&self, earlier: &RejectionTotals) -> u8 {
+        [
+            (self.dt, earlier.dt, flag::DT),
+            (self.gyr, earlier.gyr, flag::GYR),
+            (self.acc, earlier.acc, flag::ACC),
+            (self.mag, earlier.mag, flag::MAG),
+            (self.gated, earlier.gated, flag::GATED),
+        ]
+        .iter()
+        .filter(|(now, then, _)| now > then)
+        .fold(0, |bits, (_, _, bit)| bits | bit)
+    }
+}
+
 /// The estimates of one channel at every one of its samples, in `f64`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ChannelOutput {
     /// Orientation after each sample (sensor to earth, ENU).
     pub quat: Vec<Quat<f64>>,
-    /// Gyro-bias estimate after each sample, rad/s (zero for filters without one).
+    /// Gyro-bias estimate after each sample, rad/s (zero for filters without one; empty when
+    /// not collected).
     pub bias: Vec<Vec3<f64>>,
+    /// Attitude-error covariance after each sample, rad², as its upper triangle
+    /// `[xx, xy, xz, yy, yz, zz]` in the convention of
+    /// [`OrientationFilter::attitude_covariance`] (earth frame, ENU: `zz` is heading). Empty
+    /// when not collected or when the filter carries none.
+    pub covariance: Vec<[f64; 6]>,
+    /// Per sample, the [`flag`] bits of what the filter skipped at that sample (empty when
+    /// not collected).
+    pub flags: Vec<u8>,
     /// What the filter skipped over the whole recording, by reason.
     pub rejections: RejectionTotals,
 }
@@ -55,9 +117,34 @@ pub fn run_recordings(
     recs: &[Recording],
     precision: Precision,
 ) -> Vec<ChannelOutput> {
+    run_recordings_with(spec, recs, precision, Columns::default())
+}
+
+/// [`run_recordings`], collecting the series chosen in `columns`.
+///
+/// ```
+/// use rootfuse_attitude::registry::FilterSpec;
+/// use rootfuse_attitude::sim::scenario;
+/// use rootfuse_batch::{Columns, Precision, run_recordings_with};
+///
+/// let spec = FilterSpec::new("sqrt-eskf").unwrap();
+/// let recs = vec![scenario("static", 1, 2.0, 100.0).unwrap()];
+/// let columns = Columns { bias: false, covariance: true, flags: true };
+/// let out = run_recordings_with(&spec, &recs, Precision::F64, columns);
+/// assert!(out[0].bias.is_empty());
+/// assert_eq!(out[0].covariance.len(), recs[0].len());
+/// assert!(out[0].covariance.iter().all(|p| p[0] > 0.0 && p[3] > 0.0 && p[5] > 0.0));
+/// assert!(out[0].flags.iter().all(|&f| f == 0));
+/// ```
+pub fn run_recordings_with(
+    spec: &FilterSpec,
+    recs: &[Recording],
+    precision: Precision,
+    columns: Columns,
+) -> Vec<ChannelOutput> {
     match precision {
-        Precision::F32 => run_sources::<f32x8, _>(spec, recs),
-        Precision::F64 => run_sources::<f64x4, _>(spec, recs),
+        Precision::F32 => run_sources_with::<f32x8, _>(spec, recs, columns),
+        Precision::F64 => run_sources_with::<f64x4, _>(spec, recs, columns),
     }
 }
 
@@ -66,12 +153,24 @@ pub fn run_sources<L: Lane, S: ChannelSource>(
     spec: &FilterSpec,
     sources: &[S],
 ) -> Vec<ChannelOutput> {
+    run_sources_with::<L, S>(spec, sources, Columns::default())
+}
+
+/// [`run_recordings_with`] for any lane type and any [`ChannelSource`].
+pub fn run_sources_with<L: Lane, S: ChannelSource>(
+    spec: &FilterSpec,
+    sources: &[S],
+    columns: Columns,
+) -> Vec<ChannelOutput> {
     let mut batch = Batch::<L>::new(spec, sources.len());
+    let capacity = |on: bool, len: usize| if on { len } else { 0 };
     let mut out: Vec<ChannelOutput> = sources
         .iter()
         .map(|s| ChannelOutput {
             quat: Vec::with_capacity(s.len()),
-            bias: Vec::with_capacity(s.len()),
+            bias: Vec::with_capacity(capacity(columns.bias, s.len())),
+            covariance: Vec::with_capacity(capacity(columns.covariance, s.len())),
+            flags: Vec::with_capacity(capacity(columns.flags, s.len())),
             rejections: RejectionTotals::default(),
         })
         .collect();
@@ -85,14 +184,41 @@ pub fn run_sources<L: Lane, S: ChannelSource>(
         )
         .for_each(|(chunk, (srcs, outs))| {
             let steps = srcs.iter().map(|s| s.len()).max().unwrap_or(0);
+            let mut counted = vec![RejectionTotals::default(); outs.len()];
             chunk.run_sources(srcs, 0..steps, |_, chunk, active| {
-                let (q, b) = (chunk.filter().quat(), chunk.filter().bias());
+                let filter = chunk.filter();
+                let (q, b) = (filter.quat(), filter.bias());
+                let cov = if columns.covariance {
+                    filter.attitude_covariance()
+                } else {
+                    None
+                };
                 for (i, o) in outs.iter_mut().enumerate() {
-                    if (active >> i) & 1 == 1 {
-                        let (q, b) = (q.lane(i), b.lane(i));
-                        o.quat
-                            .push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
+                    if (active >> i) & 1 == 0 {
+                        continue;
+                    }
+                    let q = q.lane(i);
+                    o.quat
+                        .push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
+                    if columns.bias {
+                        let b = b.lane(i);
                         o.bias.push(Vec3::new(b.x.into(), b.y.into(), b.z.into()));
+                    }
+                    if let Some(p) = &cov {
+                        let at = |r: usize, c: usize| -> f64 { p.m[r][c].extract(i).into() };
+                        o.covariance.push([
+                            at(0, 0),
+                            at(0, 1),
+                            at(0, 2),
+                            at(1, 1),
+                            at(1, 2),
+                            at(2, 2),
+                        ]);
+                    }
+                    if columns.flags {
+                        let now = chunk.rejections(i);
+                        o.flags.push(now.flags_since(&counted[i]));
+                        counted[i] = now;
                     }
                 }
             });

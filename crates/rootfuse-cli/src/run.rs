@@ -1,11 +1,12 @@
 //! `rootfuse run`: filter IMU CSV files, write one estimate file per input.
 use crate::Outcome;
-use crate::engine::{PrecisionArg, run_recordings};
+use crate::engine::{Columns, PrecisionArg, run_recordings_with};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use rootfuse_attitude::Recording;
 use rootfuse_attitude::io::{list_dir, read_csv, write_estimates};
 use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_attitude::{OrientationFilter, Recording};
+use rootfuse_batch::ChannelOutput;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -33,6 +34,15 @@ pub struct RunArgs {
     /// Also write the gyro-bias estimate (`bx,by,bz`, rad/s).
     #[arg(long)]
     bias: bool,
+    /// Also write the attitude-error covariance (`p_xx,p_xy,p_xz,p_yy,p_yz,p_zz`, rad², earth
+    /// frame ENU, `p_zz` = heading), for filters that carry one (`sqrt-eskf`, `ekf`).
+    #[arg(long)]
+    covariance: bool,
+    /// Also write a `flags` column: per sample, the sum of 1 (dt skipped), 2 (gyroscope
+    /// skipped), 4 (accelerometer correction skipped), 8 (magnetometer correction skipped),
+    /// 16 (a correction gated).
+    #[arg(long)]
+    flags: bool,
     /// Skip unreadable files (reported) instead of stopping; exit code 1 if any failed.
     #[arg(long)]
     keep_going: bool,
@@ -47,6 +57,12 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     if let Some(dof) = &args.dof {
         spec.set_dof(if dof == "6" { 6 } else { 9 })
             .map_err(|e| e.to_string())?;
+    }
+    if args.covariance && spec.build::<f64>().attitude_covariance().is_none() {
+        return Err(format!(
+            "--covariance: filter `{}` carries no covariance (sqrt-eskf and ekf do)",
+            args.filter
+        ));
     }
     let mut files = Vec::new();
     for input in &args.inputs {
@@ -86,7 +102,12 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     ));
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
     let start = Instant::now();
-    let outputs = run_recordings(&spec, &recs, args.precision.into());
+    let columns = Columns {
+        bias: args.bias,
+        covariance: args.covariance,
+        flags: args.flags,
+    };
+    let outputs = run_recordings_with(&spec, &recs, args.precision.into(), columns);
     let seconds = start.elapsed().as_secs_f64();
     spinner.finish_and_clear();
 
@@ -96,20 +117,11 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     let mut samples = 0usize;
     for (rec, out) in recs.iter().zip(&outputs) {
         let path = args.out.join(format!("{}.csv", rec.name));
-        let columns: [Vec<f64>; 3] = [
-            out.bias.iter().map(|b| b.x).collect(),
-            out.bias.iter().map(|b| b.y).collect(),
-            out.bias.iter().map(|b| b.z).collect(),
-        ];
-        let extra: Vec<(&str, &[f64])> = if args.bias {
-            vec![
-                ("bx", &columns[0]),
-                ("by", &columns[1]),
-                ("bz", &columns[2]),
-            ]
-        } else {
-            Vec::new()
-        };
+        let series = extra_columns(out);
+        let extra: Vec<(&str, &[f64])> = series
+            .iter()
+            .map(|(name, values)| (*name, values.as_slice()))
+            .collect();
         write_estimates(&path, &rec.t, &out.quat, &extra).map_err(|e| e.to_string())?;
         let r = out.rejections;
         for (t, v) in totals.iter_mut().zip([r.dt, r.gyr, r.acc, r.mag, r.gated]) {
@@ -138,4 +150,24 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     } else {
         Ok(Outcome::Success)
     }
+}
+
+/// The optional output columns that were collected, by name, in file order.
+fn extra_columns(out: &ChannelOutput) -> Vec<(&'static str, Vec<f64>)> {
+    let mut series = Vec::new();
+    if !out.bias.is_empty() {
+        series.push(("bx", out.bias.iter().map(|b| b.x).collect()));
+        series.push(("by", out.bias.iter().map(|b| b.y).collect()));
+        series.push(("bz", out.bias.iter().map(|b| b.z).collect()));
+    }
+    if !out.covariance.is_empty() {
+        let names = ["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"];
+        for (k, name) in names.into_iter().enumerate() {
+            series.push((name, out.covariance.iter().map(|p| p[k]).collect()));
+        }
+    }
+    if !out.flags.is_empty() {
+        series.push(("flags", out.flags.iter().map(|&f| f64::from(f)).collect()));
+    }
+    series
 }

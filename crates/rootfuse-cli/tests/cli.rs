@@ -265,3 +265,49 @@ fn stress_json_has_the_specified_keys() {
     let o = run(&["stress", "--scenario", "nonsense"]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `--bias --covariance --flags` add their columns in that order; the covariance is positive
+/// on its diagonal; a filter without a covariance is a one-line error, exit code 2.
+#[test]
+fn run_writes_optional_columns() {
+    let dir = temp_dir("columns");
+    let mut rec = scenario("slow-rotation", 3, 4.0, 100.0).unwrap();
+    rec.gyr[50] = rootfuse_attitude::Vec3::new(100.0, 0.0, 0.0); // saturated
+    let input = dir.join("sim.csv");
+    write_recording(&input, &rec).unwrap();
+    let out = dir.join("o");
+    let (input_s, out_s) = (input.display().to_string(), out.display().to_string());
+    let common = ["run", &input_s, "--out", &out_s, "--bias", "--flags"];
+    let o = bin()
+        .args(common)
+        .args(["--filter", "sqrt-eskf", "--covariance"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o).1);
+    let written = std::fs::read_to_string(out.join("sim.csv")).unwrap();
+    let mut lines = written.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t,qw,qx,qy,qz,bx,by,bz,p_xx,p_xy,p_xz,p_yy,p_yz,p_zz,flags"
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), rec.len());
+    for row in &rows {
+        assert!(row[8] > 0.0 && row[11] > 0.0 && row[13] > 0.0, "{row:?}");
+    }
+    // The saturated gyro sample is skipped, flagged 2 (gyroscope).
+    assert_eq!(rows[50][14], 2.0);
+    assert_eq!(rows.iter().filter(|r| r[14] != 0.0).count(), 1);
+
+    let o = bin()
+        .args(common)
+        .args(["--filter", "mahony", "--covariance"])
+        .output()
+        .unwrap();
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("carries no covariance"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}

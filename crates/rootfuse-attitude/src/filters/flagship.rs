@@ -733,4 +733,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
     }
+    fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
+        Some(SqrtEskf::attitude_covariance(self))
+    }
 }

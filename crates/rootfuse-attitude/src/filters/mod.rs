@@ -28,7 +28,7 @@ pub use params::{ParamError, Params};
 pub use screen::{Rejections, ScreenLimits, Screened};
 
 use crate::{ImuSample, Quat, Vec3};
-use rootfuse_lane::{Lane, Mask};
+use rootfuse_lane::{Lane, Mask, Mat};
 
 /// A causal orientation filter over lanes of type `T`.
 pub trait OrientationFilter<T: Lane> {
@@ -42,6 +42,15 @@ pub trait OrientationFilter<T: Lane> {
     }
     /// Per-lane counts of skipped samples and corrections, by reason.
     fn rejections(&self) -> &Rejections<T>;
+    /// Covariance of the attitude error of [`quat`](Self::quat), rad², for filters that carry
+    /// one (`None` otherwise; the answer is the same for every lane).
+    ///
+    /// Convention: the global (earth-frame) error `δθ` with `q_true = Exp(δθ) ⊗ q`, where
+    /// `Exp(v) = [cos(|v|/2), sin(|v|/2)·v/|v|]`; axes ENU, so `[2][2]` is the heading
+    /// variance and the upper-left 2×2 block is the inclination.
+    fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
+        None
+    }
 }
 
 /// Shared initialisation: where a lane is not yet initialised and this sample has a usable
