@@ -103,5 +103,73 @@ fn batch_filters(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, gyro_step, simulator, batch_filters);
+/// Time per RLS update for every form, n = 3, 4, 7, 8, 16, 64, in f32, f64 and f32x8 lanes
+/// (throughput per channel: an `f32x8` update counts 8). White regressors, λ = 0.999, no
+/// bounds; the ratios to `conventional` within one group are the comparison.
+fn rls_forms(c: &mut Criterion) {
+    use rootfuse::lane::{Mat, Vector};
+    use rootfuse::lsq::rls::{
+        BiermanUd, Conventional, InformationQr, InverseQr, Joseph, Potter, RecursiveLeastSquares,
+        RlsConfig,
+    };
+    const SAMPLES: usize = 64;
+    fn bench<T: Lane, F: RecursiveLeastSquares<T, N>, const N: usize>(
+        group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+        precision: &str,
+    ) {
+        // A fixed pseudo-random stream (xorshift), the same for every form.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let input: Vec<(Vector<T, N>, T)> = (0..SAMPLES)
+            .map(|_| {
+                let h = Vector::<T, N>::from_fn(|_, _| T::from_f64(uniform()));
+                let z = T::from_f64(uniform());
+                (h, z)
+            })
+            .collect();
+        let x0 = Vector::<T, N>::zeros();
+        let p0 = Mat::<T, N, N>::identity().scale(T::from_f64(10.0));
+        let mut f = F::new(&x0, &p0, RlsConfig::new(0.999)).unwrap();
+        group.throughput(Throughput::Elements((SAMPLES * T::LANES) as u64));
+        group.bench_function(format!("{}/{precision}", F::NAME), |b| {
+            b.iter(|| {
+                for (h, z) in black_box(&input) {
+                    f.update(h, *z, T::one());
+                }
+            })
+        });
+        black_box(f.estimate());
+    }
+    macro_rules! sizes {
+        ($($n:literal)*) => {$({
+            let mut group = c.benchmark_group(format!("rls/n{}", $n));
+            group
+                .sample_size(10)
+                .warm_up_time(std::time::Duration::from_millis(300))
+                .measurement_time(std::time::Duration::from_secs(1));
+            macro_rules! forms {
+                ($t:ty, $p:literal) => {
+                    bench::<$t, Conventional<$t, $n>, $n>(&mut group, $p);
+                    bench::<$t, Joseph<$t, $n>, $n>(&mut group, $p);
+                    bench::<$t, Potter<$t, $n>, $n>(&mut group, $p);
+                    bench::<$t, BiermanUd<$t, $n>, $n>(&mut group, $p);
+                    bench::<$t, InverseQr<$t, $n>, $n>(&mut group, $p);
+                    bench::<$t, InformationQr<$t, $n>, $n>(&mut group, $p);
+                };
+            }
+            forms!(f32, "f32");
+            forms!(f64, "f64");
+            forms!(wide::f32x8, "f32x8");
+            group.finish();
+        })*};
+    }
+    sizes!(3 4 7 8 16 64);
+}
+
+criterion_group!(benches, gyro_step, simulator, batch_filters, rls_forms);
 criterion_main!(benches);

@@ -862,5 +862,16 @@ fn stress_scenarios_run_short() {
         if r.scenario == "windup" || r.scenario == "non-persistent" {
             assert!(r.nan_at.is_none(), "{r:?}");
         }
+        // The trace has every checkpoint; recovery scenarios judge the last one.
+        assert_eq!(r.trace.last().map(|p| p.0), Some(r.steps), "{r:?}");
+        if r.scenario == "non-persistent" {
+            assert!(r.trace.len() >= 50, "{}", r.trace.len());
+            assert_eq!(r.trace.last().unwrap().1, r.max_rel_err);
+        }
+        // Against the double-double reference, f64 rows measure accuracy: well-conditioned
+        // scenarios are accurate to a few hundred ulps.
+        if r.precision == "f64" && matches!(r.scenario, "benign" | "lambda-one") {
+            assert!(r.max_rel_err < 1e-13, "{r:?}");
+        }
     }
 }

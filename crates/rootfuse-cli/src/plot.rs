@@ -206,3 +206,108 @@ where
     root.present()?;
     Ok(())
 }
+
+/// One line of [`stress_trace`]: a form in one precision.
+pub struct TraceSeries {
+    /// Form name.
+    pub form: String,
+    /// Double precision (drawn dashed) or single.
+    pub f64: bool,
+    /// `(step, relative error)`.
+    pub points: Vec<(u64, f64)>,
+}
+
+/// Relative error against the reference over the steps of one stress scenario, log scale,
+/// one line per form and precision (f32 solid, f64 dashed). Written to `path` as PNG or SVG
+/// by its extension.
+pub fn stress_trace(path: &Path, title: &str, series: &[TraceSeries]) -> Result<(), String> {
+    fonts()?;
+    let positive = || {
+        series
+            .iter()
+            .flat_map(|l| &l.points)
+            .map(|p| p.1)
+            .filter(|e| e.is_finite() && *e > 0.0)
+    };
+    // Exact agreement (error 0) is drawn at the floor of the axis.
+    let y_min = positive().fold(f64::INFINITY, f64::min).max(1e-17) / 2.0;
+    let y_max = positive().fold(1e-16, f64::max) * 2.0;
+    let x_max = series
+        .iter()
+        .flat_map(|l| &l.points)
+        .map(|p| p.0)
+        .max()
+        .unwrap_or(1) as f64;
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let drawn = if svg {
+        let root = SVGBackend::new(path, SIZE).into_drawing_area();
+        draw_trace(root, title, (x_max, y_min, y_max), series)
+    } else {
+        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+        draw_trace(root, title, (x_max, y_min, y_max), series)
+    };
+    drawn.map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn draw_trace<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    (x_max, y_min, y_max): (f64, f64, f64),
+    series: &[TraceSeries],
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(64)
+        .build_cartesian_2d(0.0..x_max, (y_min..y_max).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("step")
+        .y_desc("relative error vs reference")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    let forms: Vec<&str> =
+        series
+            .iter()
+            .map(|l| l.form.as_str())
+            .fold(Vec::new(), |mut seen, n| {
+                if !seen.contains(&n) {
+                    seen.push(n);
+                }
+                seen
+            });
+    for line in series {
+        let color = palette(forms.iter().position(|f| *f == line.form).unwrap_or(0));
+        let label = format!("{} {}", line.form, if line.f64 { "f64" } else { "f32" });
+        let clamp = |e: f64| if e.is_finite() { e.max(y_min) } else { y_max };
+        let xy: Vec<(f64, f64)> = line
+            .points
+            .iter()
+            .map(|&(k, e)| (k as f64, clamp(e)))
+            .collect();
+        let style = color.stroke_width(2);
+        let drawn = if line.f64 {
+            chart.draw_series(DashedLineSeries::new(xy, 6, 4, style))?
+        } else {
+            chart.draw_series(LineSeries::new(xy, style))?
+        };
+        drawn.label(label).legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+        });
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

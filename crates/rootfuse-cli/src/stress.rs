@@ -1,5 +1,6 @@
 //! `rootfuse stress`: numerical stress scenarios for every recursive least-squares form, in
-//! f32 and f64, against an f64 reference (the runners of `rootfuse_lsq::stress`).
+//! f32 and f64, against a double-double reference (the runners of `rootfuse_lsq::stress`).
+use crate::plot::TraceSeries;
 use clap::Args;
 use rootfuse_lsq::stress::{SCENARIOS, StressOptions, StressRow, run_all, run_scenario};
 
@@ -18,6 +19,10 @@ pub struct StressArgs {
     /// Print one JSON array instead of a table.
     #[arg(long)]
     json: bool,
+    /// Also draw the relative error over the steps of `--scenario` (every form, f32 and f64;
+    /// the first parameter value) to this `.png` or `.svg` file.
+    #[arg(long, value_name = "FILE", requires = "scenario")]
+    plot: Option<std::path::PathBuf>,
 }
 
 /// Runs the command.
@@ -35,6 +40,23 @@ pub fn run(args: &StressArgs) -> Result<(), String> {
         }
         None => run_all(options),
     };
+    if let (Some(path), Some(name)) = (&args.plot, &args.scenario) {
+        let first = rows.first().and_then(|r| r.param);
+        let series: Vec<TraceSeries> = rows
+            .iter()
+            .filter(|r| r.param == first)
+            .map(|r| TraceSeries {
+                form: r.form.to_string(),
+                f64: r.precision == "f64",
+                points: r.trace.clone(),
+            })
+            .collect();
+        let title = match first {
+            Some(p) => format!("stress: {name} ({p:e})"),
+            None => format!("stress: {name}"),
+        };
+        crate::plot::stress_trace(path, &title, &series)?;
+    }
     if args.json {
         let objects: Vec<String> = rows.iter().map(json_row).collect();
         out!("[{}]", objects.join(",\n "));
