@@ -23,8 +23,8 @@ const PINNED: [(&str, u8, [[f64; 3]; 4]); 12] = [
     ("complementary", 6, [[2.26, 2.08, 0.90], [6.85, 6.62, 1.75], [33.50, 18.16, 28.26], [7.31, 4.90, 5.42]]),
     ("mahony", 9, [[1.47, 1.42, 0.38], [3.28, 2.84, 1.64], [17.23, 14.62, 9.20], [10.55, 9.27, 5.05]]),
     ("mahony", 6, [[1.91, 1.86, 0.40], [8.18, 8.01, 1.67], [13.32, 9.62, 9.22], [6.95, 4.77, 5.05]]),
-    ("madgwick", 9, [[1.65, 1.51, 0.67], [6.46, 6.02, 2.36], [9.39, 8.86, 3.11], [4.38, 3.41, 2.75]]),
-    ("madgwick", 6, [[2.20, 2.10, 0.65], [7.09, 6.76, 2.13], [7.77, 7.19, 2.94], [5.54, 4.02, 3.81]]),
+    ("madgwick", 9, [[1.66, 1.52, 0.67], [6.60, 6.16, 2.37], [9.61, 9.07, 3.17], [4.36, 3.43, 2.70]]),
+    ("madgwick", 6, [[2.19, 2.09, 0.64], [7.08, 6.75, 2.13], [7.77, 7.18, 2.96], [5.48, 4.01, 3.74]]),
     ("ekf", 9, [[1.59, 1.53, 0.44], [2.99, 1.66, 2.48], [18.38, 15.41, 10.06], [7.48, 6.21, 4.17]]),
     ("ekf", 6, [[1.29, 1.22, 0.42], [6.33, 5.56, 3.03], [98.98, 98.19, 14.49], [27.62, 27.02, 5.80]]),
     ("sqrt-eskf", 9, [[1.45, 1.37, 0.49], [1.66, 1.29, 1.05], [0.78, 0.54, 0.56], [1.78, 1.48, 0.98]]),
@@ -127,24 +127,19 @@ fn broad_f32_matches_f64() {
     }
 }
 
-/// Our Madgwick 9D against the reference implementation's published numbers. It is at least
-/// as good on trials 02, 07 and 16; on 29 (magnetic disturbance) it is 4.38 vs 4.36 and no
-/// single gain beats both 16 and 29 (see the closing note of issue 4).
+/// Our Madgwick 9D against the reference implementation's published numbers (two decimals):
+/// at least as good on every trial at that precision, i.e. not above the published value plus
+/// its rounding half-unit. With β = 0.0525 it is 1.66, 6.60, 9.61 and 4.36 against 1.72, 7.35,
+/// 9.62 and 4.36: trial 16 needs β ≥ 0.0525, trial 29 (a magnetic disturbance the filter does
+/// not detect) β ≤ 0.0525, so the margin is thin by construction.
 #[test]
 fn madgwick_against_reference() {
-    let pinned = PINNED
-        .iter()
-        .find(|(n, d, _)| *n == "madgwick" && *d == 9)
-        .unwrap()
-        .2;
-    for k in 0..3 {
-        assert!(
-            pinned[k][0] <= MADGWICK_REFERENCE[k],
-            "{}: {} > {}",
-            TRIALS[k],
-            pinned[k][0],
-            MADGWICK_REFERENCE[k]
-        );
+    let Some(dir) = broad_dir() else { return };
+    let mut spec = FilterSpec::new("madgwick").unwrap();
+    spec.set_dof(9).unwrap();
+    for (trial, reference) in TRIALS.iter().zip(MADGWICK_REFERENCE) {
+        let rec = read_csv(dir.join(format!("{trial}.csv"))).unwrap();
+        let got = rmse(&spec, &rec, 9, false).total;
+        assert!(got < reference + 0.005, "{trial}: {got:.4} > {reference}");
     }
-    assert!(pinned[3][0] - MADGWICK_REFERENCE[3] < 0.05);
 }
