@@ -8,6 +8,7 @@ mod common;
 mod data_io;
 mod filters;
 mod flagship;
+mod frames;
 mod lane;
 mod mat;
 mod preprocess;

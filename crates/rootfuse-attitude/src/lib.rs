@@ -22,6 +22,7 @@ extern crate std;
 
 pub mod blocks;
 pub mod filters;
+pub mod frames;
 mod interop;
 #[cfg(feature = "std")]
 pub mod io;
