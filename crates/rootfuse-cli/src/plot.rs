@@ -270,6 +270,7 @@ where
     chart
         .configure_mesh()
         .x_desc("step")
+        .x_label_formatter(&|v| format!("{v:.0}"))
         .y_desc("relative error vs reference")
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()?;
@@ -304,7 +305,8 @@ where
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        // The middle of a stress run is where the curves are flat: keep the legend there.
+        .position(SeriesLabelPosition::LowerMiddle)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()?;
