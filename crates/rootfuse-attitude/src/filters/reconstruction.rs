@@ -1,7 +1,8 @@
 //! Seed 001: complementary reconstruction [`complementary-reconstruction`].
 
+use super::complementary::tilt_correction;
 use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params};
-use crate::blocks::{acc_mag_quat, coning_rotation_vector, tilt_from_acc};
+use crate::blocks::{acc_mag_quat, coning_rotation_vector};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -65,8 +66,10 @@ params! {
 ///   accelerometer angles is not specified and none is added (the α blend is the low-pass);
 /// - the source leaves the sign of `Q̂` free: it is aligned to `Q`'s hemisphere before the
 ///   blend (averaging antipodal quaternions would cancel them);
-/// - in 6D, and in 9D where the field is unusable, `Q̂` is the accelerometer tilt under the
-///   heading of `Q(t_k)` (heading from the gyroscope).
+/// - in 6D, and in 9D where the field is unusable, `Q̂` is `Q(t_k)` turned about a horizontal
+///   earth axis until its predicted gravity matches the measured one: the gyro heading is
+///   kept (a swing-twist split of `Q` into heading and tilt would be ill-defined near upside
+///   down).
 #[derive(Clone, Debug)]
 pub struct ComplementaryReconstruction<T: Lane> {
     q: Quat<T>,
@@ -288,9 +291,12 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
         } else {
             acc_raw
         };
-        let (tilt, tilt_ok) = tilt_from_acc(acc);
-        let (heading, _) = q.heading_inclination();
-        let mut q_obs = Quat::from_heading(heading) * tilt;
+        // Gravity alone: `Q` turned about a horizontal axis until its predicted gravity matches
+        // the measured one, so the heading of `Q` is kept (no swing-twist split, which is
+        // ill-defined near upside down).
+        let (a_unit, tilt_ok) = acc.try_normalize();
+        let tilt = tilt_correction(q.rotate(a_unit));
+        let mut q_obs = (Quat::from_rotation_vector(tilt) * q).normalize();
         if self.nine_d {
             let (am, am_ok) = acc_mag_quat(acc, s.mag, T::from_f64(0.1));
             q_obs = Quat::select(am_ok & s.mag_ok, am, q_obs);
