@@ -43,9 +43,10 @@ params! {
 /// Reading of the source:
 /// - "initial still period": the first `still_s` seconds of usable samples are taken as still
 ///   (the source samples "several times" before starting); during them the gyro bias, the
-///   accelerometer means and the largest static deviations are accumulated online, α is 0
-///   (still: the output is the observation) and no bias is subtracted; after them the
-///   estimates are frozen and applied;
+///   accelerometer means and the largest static deviations are accumulated online while the
+///   method has not started (the source samples them "in advance"): the first sample's
+///   attitude is propagated by the uncorrected gyro alone (α = 1); after them the estimates
+///   are frozen and applied and the blend starts;
 /// - `ω_static_max` / `a_static_max` are the largest absolute deviations from the still-period
 ///   means (the readings after the offset correction), floored by `min_static_rate` /
 ///   `min_static_acc` so an ideal sensor does not give an infinite `K`;
@@ -308,10 +309,11 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
             None => {
                 let m = self.motion(w, acc, q);
                 let a = T::one() - T::one() / (m + T::one());
-                let a = T::select(a.is_finite(), a, T::one());
-                T::select(still, T::zero(), a)
+                T::select(a.is_finite(), a, T::one())
             }
         };
+        // The method starts after the still period: until then the gyro alone propagates.
+        let alpha = T::select(still, T::one(), alpha);
         // nlerp weights `self` by 1 − t and the hemisphere-aligned `other` by t.
         let blended = q.nlerp(q_obs, T::one() - alpha);
         let q_new = Quat::select(obs_ok, blended, q);
