@@ -237,7 +237,9 @@ fn registry_names_and_errors() {
             "mahony",
             "madgwick",
             "ekf",
-            "sqrt-eskf"
+            "sqrt-eskf",
+            "ecf-ekf",
+            "complementary-reconstruction"
         ]
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();

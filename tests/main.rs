@@ -14,4 +14,5 @@ mod mat;
 mod preprocess;
 mod quat;
 mod rls;
+mod seed_001_004;
 mod sim;

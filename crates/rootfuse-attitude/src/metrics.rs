@@ -25,6 +25,7 @@
 
 use crate::quat::Quat;
 use crate::recording::Recording;
+use core::f64::consts::PI;
 use std::vec::Vec;
 
 /// How the estimate is aligned to the reference before errors are computed.
@@ -272,4 +273,39 @@ pub fn evaluate_series(
 ) -> Result<ErrorSeries, MetricsError> {
     let truth = rec.truth.as_deref().ok_or(MetricsError::NoTruth)?;
     error_series(est, truth, rec.use_mask.as_deref(), mode)
+}
+
+/// Roll, pitch and yaw RMSE (degrees) of estimates against a recording's truth over the
+/// samples from `skip_s` seconds on (all samples, the use mask is not read): ZYX Euler
+/// angles ([`Quat::to_euler_zyx`]), differences wrapped to `[−π, π)`.
+///
+/// With `align` (6D estimates, whose heading is relative) the estimate is first turned about
+/// earth-z by the heading offset at the first evaluated sample, so the yaw error is the
+/// heading drift from there. Returns NaN where no sample is evaluated or there is no truth.
+pub fn euler_rmse(rec: &Recording, est: &[Quat<f64>], skip_s: f64, align: bool) -> [f64; 3] {
+    let Some(truth) = rec.truth.as_ref() else {
+        return [f64::NAN; 3];
+    };
+    let wrap = |d: f64| (d + PI).rem_euclid(2.0 * PI) - PI;
+    let (mut sum, mut n) = ([0.0; 3], 0usize);
+    let mut turn = None;
+    for ((t, e), q) in rec.t.iter().zip(est).zip(truth) {
+        if *t < skip_s {
+            continue;
+        }
+        let turn = *turn.get_or_insert_with(|| {
+            if align {
+                Quat::from_heading(error_heading(error_quat(*q, *e)))
+            } else {
+                Quat::identity()
+            }
+        });
+        let (ye, pe, re) = (turn * *e).to_euler_zyx();
+        let (yt, pt, rt) = q.to_euler_zyx();
+        for (s, d) in sum.iter_mut().zip([re - rt, pe - pt, ye - yt]) {
+            *s += wrap(d) * wrap(d);
+        }
+        n += 1;
+    }
+    sum.map(|s| (s / n as f64).sqrt().to_degrees())
 }

@@ -25,6 +25,8 @@ use rootfuse_lane::{Lane, Mask};
 #[derive(Clone, Debug)]
 struct Window<T: Lane, const W: usize> {
     buf: [T; W],
+    /// Samples in use, `1..=W` (the moving mean's window may be chosen at run time).
+    len: usize,
     next: usize,
     hold: Hold<T>,
 }
@@ -34,6 +36,7 @@ impl<T: Lane, const W: usize> Window<T, W> {
         const { assert!(W >= 1, "the window holds at least one sample") };
         Self {
             buf: [T::zero(); W],
+            len: W,
             next: 0,
             hold: Hold::new(),
         }
@@ -47,7 +50,7 @@ impl<T: Lane, const W: usize> Window<T, W> {
             }
         }
         self.buf[self.next] = x;
-        self.next = (self.next + 1) % W;
+        self.next = (self.next + 1) % self.len;
         x
     }
 }
@@ -151,19 +154,28 @@ impl<T: Lane, const N: usize> Default for MovingMean<T, N> {
 impl<T: Lane, const N: usize> MovingMean<T, N> {
     /// A moving mean of window `N`.
     pub fn new() -> Self {
-        Self {
-            window: Window::new(),
-        }
+        Self::with_len(N)
+    }
+    /// A moving mean over the last `len` samples, `len` clamped to `1..=N` (`N` is the
+    /// capacity): for a window chosen at run time.
+    pub fn with_len(len: usize) -> Self {
+        let mut window = Window::new();
+        window.len = len.clamp(1, N);
+        Self { window }
+    }
+    /// The number of samples averaged.
+    pub fn window_len(&self) -> usize {
+        self.window.len
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
         self.window.push(x);
         // Summing the window each time (N is small) avoids the drift of a running sum in f32.
         let mut sum = T::zero();
-        for v in &self.window.buf {
+        for v in &self.window.buf[..self.window.len] {
             sum += *v;
         }
-        sum / T::from_f64(N as f64)
+        sum / T::from_f64(self.window.len as f64)
     }
     /// Per-lane count of rejected (non-finite) inputs.
     pub fn rejected(&self) -> &T::Counts {

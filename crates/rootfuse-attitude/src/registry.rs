@@ -153,6 +153,8 @@ registry! {
     Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
     Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
     SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
+    EcfEkf => "ecf-ekf", EcfEkf, EcfEkfParams, "Seed 004: moving average, Mahony ECF with magnetometer, 7-state EKF observing the ECF quaternion.";
+    ComplementaryReconstruction => "complementary-reconstruction", ComplementaryReconstruction, ComplementaryReconstructionParams, "Seed 001: rotation-vector gyro update blended with the acc/mag quaternion by the motion parameter α.";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.

@@ -57,14 +57,11 @@ pub struct Ekf<T: Lane> {
 impl<T: Lane> Ekf<T> {
     /// A filter with the given parameters.
     pub fn new(p: &EkfParams) -> Self {
-        let mut cov = Mat::<T, 7, 7>::identity().scale(T::from_f64(0.01));
-        for i in 4..7 {
-            cov.m[i][i] = T::from_f64(p.init_bias_std * p.init_bias_std);
-        }
+        let x = State::new(p.init_bias_std);
         Self {
-            q: Quat::identity(),
-            bias: Vec3::zero(),
-            p: cov,
+            q: x.q,
+            bias: x.bias,
+            p: x.p,
             initialized: <T::Mask as Mask>::splat(false),
             gyr_var: T::from_f64(p.gyr_noise * p.gyr_noise),
             bias_var: T::from_f64(p.bias_walk * p.bias_walk),
@@ -117,23 +114,15 @@ impl<T: Lane> Ekf<T> {
             ],
         ]);
         let r = Mat::<T, 3, 3>::identity().scale(var);
-        let pht = self.p * h.transpose();
-        let innovation_cov = h * pht + r;
-        let (l, ok) = innovation_cov.cholesky();
-        // K = P·Hᵀ·S⁻¹, computed as (S⁻¹·H·P)ᵀ since S and P are symmetric.
-        let k = l.cholesky_solve(&pht.transpose()).transpose();
         let y = (s - q.rotate_inverse(d)).to_vector();
-        let dx = k * y;
-        let ikh = Mat::<T, 7, 7>::identity() - k * h;
-        let p_new = (ikh.congruence(&self.p) + k.congruence(&r)).symmetrize();
-        let q_new = Quat::new(q.w + dx[0], q.x + dx[1], q.y + dx[2], q.z + dx[3]);
-        let (q_new, q_ok) = q_new.try_normalize();
-        let b_new = self.bias + Vec3::new(dx[4], dx[5], dx[6]);
-        let accept = apply & ok & q_ok & p_new.is_finite() & b_new.is_finite();
+        let state = State {
+            q: self.q,
+            bias: self.bias,
+            p: self.p,
+        };
+        let (next, accept) = state.update(&h, &y, &r, apply);
         T::count(&mut self.rejections.gated, apply & !accept);
-        self.q = Quat::select(accept, q_new, self.q);
-        self.bias = Vec3::select(accept, b_new, self.bias);
-        self.p = Mat::select(accept, &p_new, &self.p);
+        (self.q, self.bias, self.p) = (next.q, next.bias, next.p);
         accept
     }
 }
@@ -144,44 +133,13 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
         let (q_prev, b_prev, p_prev) = (self.q, self.bias, self.p);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
-        // Prediction.
-        let w = s.gyr - self.bias;
-        let half_dt = s.dt * T::from_f64(0.5);
-        let q_pred = (q * Quat::from_rotation_vector(w * s.dt)).normalize();
-        let (wx, wy, wz) = (w.x * half_dt, w.y * half_dt, w.z * half_dt);
-        let one = T::one();
-        let xi = Mat::<T, 4, 3>::from_rows([
-            [-q.x, -q.y, -q.z],
-            [q.w, -q.z, q.y],
-            [q.z, q.w, -q.x],
-            [-q.y, q.x, q.w],
-        ]);
-        let mut f = Mat::<T, 7, 7>::identity();
-        let a = [
-            [one, -wx, -wy, -wz],
-            [wx, one, wz, -wy],
-            [wy, -wz, one, wx],
-            [wz, wy, -wx, one],
-        ];
-        for ((row, a_row), xi_row) in f.m.iter_mut().zip(&a).zip(&xi.m) {
-            row[..4].copy_from_slice(a_row);
-            for (dst, x) in row[4..].iter_mut().zip(xi_row) {
-                *dst = -*x * half_dt;
-            }
+        let state = State {
+            q,
+            bias: self.bias,
+            p: self.p,
         }
-        let gq = xi.scale(half_dt);
-        let q_noise = (gq * gq.transpose()).scale(self.gyr_var * s.dt);
-        let mut p = f.congruence(&self.p);
-        for (row, noise) in p.m.iter_mut().zip(&q_noise.m) {
-            for (x, n) in row.iter_mut().zip(noise) {
-                *x += *n;
-            }
-        }
-        for i in 4..7 {
-            p.m[i][i] += self.bias_var * s.dt;
-        }
-        self.q = q_pred;
-        self.p = p;
+        .predict(s.gyr, s.dt, self.gyr_var, self.bias_var);
+        (self.q, self.p) = (state.q, state.p);
 
         // Corrections.
         let acc_in_gate = (s.acc_norm - self.gravity).abs().simd_le(self.acc_gate);
@@ -218,5 +176,112 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
         ]);
         let p_qq = Mat::<T, 4, 4>::from_fn(|r, c| self.p.m[r][c]);
         Some(j.congruence(&p_qq).scale(T::from_f64(4.0)))
+    }
+}
+
+/// The state of a 7-state quaternion + gyro-bias EKF: shared by [`Ekf`] and
+/// [`EcfEkf`](super::EcfEkf), so the prediction and the measurement update exist once.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct State<T: Lane> {
+    /// Orientation, sensor to earth.
+    pub q: Quat<T>,
+    /// Gyro bias, rad/s.
+    pub bias: Vec3<T>,
+    /// Covariance of `[q0..q3, bx, by, bz]`.
+    pub p: Mat<T, 7, 7>,
+}
+
+impl<T: Lane> State<T> {
+    /// The identity orientation with variance 0.01 per quaternion component, zero bias with
+    /// standard deviation `init_bias_std` (rad/s) per axis.
+    pub fn new(init_bias_std: f64) -> Self {
+        let mut p = Mat::<T, 7, 7>::identity().scale(T::from_f64(0.01));
+        for i in 4..7 {
+            p.m[i][i] = T::from_f64(init_bias_std * init_bias_std);
+        }
+        Self {
+            q: Quat::identity(),
+            bias: Vec3::zero(),
+            p,
+        }
+    }
+    /// Prediction over `dt` with body rate `gyr` (rad/s): `q ⊗ exp((ω − b)·dt/2)`, the bias
+    /// held, `P = F·P·Fᵀ + ΓWΓᵀ` with `F = [[I + (T/2)·Ω(ω − b), −(T/2)·Ξ(q)], [0, I3]]`,
+    /// the gyro noise variance density `gyr_var` entering through `(T/2)·Ξ(q)` and the bias
+    /// random-walk variance density `bias_var` on the bias block.
+    pub fn predict(self, gyr: Vec3<T>, dt: T, gyr_var: T, bias_var: T) -> Self {
+        let q = self.q;
+        let w = gyr - self.bias;
+        let half_dt = dt * T::from_f64(0.5);
+        let q_pred = (q * Quat::from_rotation_vector(w * dt)).normalize();
+        let (wx, wy, wz) = (w.x * half_dt, w.y * half_dt, w.z * half_dt);
+        let one = T::one();
+        let xi = Mat::<T, 4, 3>::from_rows([
+            [-q.x, -q.y, -q.z],
+            [q.w, -q.z, q.y],
+            [q.z, q.w, -q.x],
+            [-q.y, q.x, q.w],
+        ]);
+        let mut f = Mat::<T, 7, 7>::identity();
+        let a = [
+            [one, -wx, -wy, -wz],
+            [wx, one, wz, -wy],
+            [wy, -wz, one, wx],
+            [wz, wy, -wx, one],
+        ];
+        for ((row, a_row), xi_row) in f.m.iter_mut().zip(&a).zip(&xi.m) {
+            row[..4].copy_from_slice(a_row);
+            for (dst, x) in row[4..].iter_mut().zip(xi_row) {
+                *dst = -*x * half_dt;
+            }
+        }
+        let gq = xi.scale(half_dt);
+        let q_noise = (gq * gq.transpose()).scale(gyr_var * dt);
+        let mut p = f.congruence(&self.p);
+        for (row, noise) in p.m.iter_mut().zip(&q_noise.m) {
+            for (x, n) in row.iter_mut().zip(noise) {
+                *x += *n;
+            }
+        }
+        for i in 4..7 {
+            p.m[i][i] += bias_var * dt;
+        }
+        Self {
+            q: q_pred,
+            bias: self.bias,
+            p,
+        }
+    }
+
+    /// Measurement update with Jacobian `h` (M×7), residual `y = z − h(x)` and noise `r`,
+    /// Joseph form, quaternion renormalised; the innovation covariance is Cholesky-factored per
+    /// lane. Returns the new state where `apply` and the update is sound (factorisation
+    /// succeeded, everything finite), else the old one, and the mask of applied lanes.
+    pub fn update<const M: usize>(
+        self,
+        h: &Mat<T, M, 7>,
+        y: &Mat<T, M, 1>,
+        r: &Mat<T, M, M>,
+        apply: T::Mask,
+    ) -> (Self, T::Mask) {
+        let q = self.q;
+        let pht = self.p * h.transpose();
+        let innovation_cov = *h * pht + *r;
+        let (l, ok) = innovation_cov.cholesky();
+        // K = P·Hᵀ·S⁻¹, computed as (S⁻¹·H·P)ᵀ since S and P are symmetric.
+        let k = l.cholesky_solve(&pht.transpose()).transpose();
+        let dx = k * *y;
+        let ikh = Mat::<T, 7, 7>::identity() - k * *h;
+        let p_new = (ikh.congruence(&self.p) + k.congruence(r)).symmetrize();
+        let q_new = Quat::new(q.w + dx[0], q.x + dx[1], q.y + dx[2], q.z + dx[3]);
+        let (q_new, q_ok) = q_new.try_normalize();
+        let b_new = self.bias + Vec3::new(dx[4], dx[5], dx[6]);
+        let accept = apply & ok & q_ok & p_new.is_finite() & b_new.is_finite();
+        let next = Self {
+            q: Quat::select(accept, q_new, q),
+            bias: Vec3::select(accept, b_new, self.bias),
+            p: Mat::select(accept, &p_new, &self.p),
+        };
+        (next, accept)
     }
 }

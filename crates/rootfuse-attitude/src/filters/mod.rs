@@ -7,15 +7,18 @@
 //! counted per reason in [`Rejections`].
 
 mod complementary;
+mod ecf_ekf;
 mod ekf;
 mod flagship;
 mod gyro;
 mod madgwick;
 mod mahony;
 mod params;
+mod reconstruction;
 mod screen;
 
 pub use complementary::{Complementary, ComplementaryParams};
+pub use ecf_ekf::{EcfEkf, EcfEkfParams};
 pub use ekf::{Ekf, EkfParams};
 pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
@@ -25,6 +28,7 @@ pub use params::ParamInfo;
 pub(crate) use params::params;
 #[cfg(feature = "std")]
 pub use params::{ParamError, Params};
+pub use reconstruction::{ComplementaryReconstruction, ComplementaryReconstructionParams};
 pub use screen::{Rejections, ScreenLimits, Screened};
 
 use crate::{ImuSample, Quat, Vec3};
