@@ -164,18 +164,15 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
     }
-    /// The quaternion block `P_qq` mapped to the global attitude error: to first order
-    /// `δq = ½·[0, δθ] ⊗ q`, so `δθ = 2·vec(δq ⊗ q*) = 2·J·δq` with
-    /// `J = [−v | w·I + [v]×]` (`q = [w, v]`), and `Σ_θ = 4·J·P_qq·Jᵀ`.
     fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
-        let (w, v) = (self.q.w, [self.q.x, self.q.y, self.q.z]);
-        let j = Mat::<T, 3, 4>::from_rows([
-            [-v[0], w, -v[2], v[1]],
-            [-v[1], v[2], w, -v[0]],
-            [-v[2], -v[1], v[0], w],
-        ]);
-        let p_qq = Mat::<T, 4, 4>::from_fn(|r, c| self.p.m[r][c]);
-        Some(j.congruence(&p_qq).scale(T::from_f64(4.0)))
+        Some(
+            State {
+                q: self.q,
+                bias: self.bias,
+                p: self.p,
+            }
+            .attitude_covariance(),
+        )
     }
 }
 
@@ -192,6 +189,19 @@ pub(crate) struct State<T: Lane> {
 }
 
 impl<T: Lane> State<T> {
+    /// The quaternion block `P_qq` mapped to the global attitude error (rad², earth frame):
+    /// to first order `δq = ½·[0, δθ] ⊗ q`, so `δθ = 2·vec(δq ⊗ q*) = 2·J·δq` with
+    /// `J = [−v | w·I + [v]×]` (`q = [w, v]`), and `Σ_θ = 4·J·P_qq·Jᵀ`.
+    pub fn attitude_covariance(&self) -> Mat<T, 3, 3> {
+        let (w, v) = (self.q.w, [self.q.x, self.q.y, self.q.z]);
+        let j = Mat::<T, 3, 4>::from_rows([
+            [-v[0], w, -v[2], v[1]],
+            [-v[1], v[2], w, -v[0]],
+            [-v[2], -v[1], v[0], w],
+        ]);
+        let p_qq = Mat::<T, 4, 4>::from_fn(|r, c| self.p.m[r][c]);
+        j.congruence(&p_qq).scale(T::from_f64(4.0))
+    }
     /// The identity orientation with variance 0.01 per quaternion component, zero bias with
     /// standard deviation `init_bias_std` (rad/s) per axis.
     pub fn new(init_bias_std: f64) -> Self {
