@@ -149,6 +149,7 @@ registry! {
     Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
     Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
     SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
+    LsqFusion => "lsq-fusion", LsqFusion, LsqFusionParams, "Seed 000: LS quaternion fusion, gyro denoising by forgetting-factor LS, square-root RLS drift.";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.

@@ -10,6 +10,7 @@ mod complementary;
 mod ekf;
 mod flagship;
 mod gyro;
+mod lsq_fusion;
 mod madgwick;
 mod mahony;
 mod params;
@@ -19,6 +20,9 @@ pub use complementary::{Complementary, ComplementaryParams};
 pub use ekf::{Ekf, EkfParams};
 pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
+pub use lsq_fusion::{
+    DriftConfig, DriftEstimator, DriftSample, LsqFusion, LsqFusionParams, PolyDenoiser,
+};
 pub use madgwick::{Madgwick, MadgwickParams};
 pub use mahony::{Mahony, MahonyParams};
 pub use params::ParamInfo;
