@@ -88,23 +88,34 @@ params! {
 /// choices):
 /// - Pre-processing is "general data smoothing" that removes "obviously abnormal values": a
 ///   Hampel filter (outliers) and a low-pass, both causal; the low-pass is off by default
-///   (`smooth = 1`) because the measured BROAD and simulated errors were lowest without it
-///   (the denoiser smooths already, without its lag).
+///   (`smooth = 1`): the denoiser smooths already, without a low-pass's lag.
 /// - The weighted LS with forgetting is a local polynomial about the current sample (the
 ///   source's `y = f(x, tᵢ)`, `S = Σ λ^{k−i} wᵢ rᵢ²`, `W = R⁻¹`), quadratic, evaluated at
 ///   the current sample; the forgetting factor is per sample `τ/(τ + dt)` so that the memory
 ///   is in seconds whatever the rate.
-/// - "Improved LS recursion" is the square-root (Potter) RLS with `P = ΔΔᵀ`; the drift
-///   regression uses the growth of the quaternion difference as earth-frame rotation vector
+/// - "Improved LS recursion" is the square-root (Potter) RLS with `P = ΔΔᵀ`. The drift
+///   regression uses the growth of the quaternion difference, as earth-frame rotation vector,
 ///   between block means within a window anchored on the fused orientation (see
-///   [`DriftEstimator`]), which cancels the unknown error of the anchor.
+///   [`DriftEstimator`]), which cancels the unknown error of the anchor. Its measurement
+///   noise is modelled (block-mean noise `drift_noise`, a rotation-proportional term
+///   `gyr_scale`, a larger `drift_mag_noise` for the 9D vertical row) and gated at 3σ of the
+///   predicted innovation: without that, correlated accelerometer errors (translation,
+///   centripetal acceleration, magnetic disturbances) drove the weakly observable
+///   components to the bound on BROAD and on the `translation` simulation.
 /// - "Compensated quaternion, fused with the accelerometer quaternion by the LS model" is a
 ///   square-root RLS on the quaternion itself with the gyro rotation as its state transition;
 ///   its gain starts near 1 (the first accelerometer quaternion is taken as it is: the
-///   initial attitude) and settles at `dt/(fusion_tau + dt)`; the weight of `q_a` falls as the
+///   initial attitude) and settles at `dt/(fusion_tau + dt)`. The weight of `q_a` falls as the
 ///   specific force departs from gravity (`acc_dev`), our addition within `W = R⁻¹`.
-/// - The quaternion's covariance stops growing at its prior (no forgetting once `trace(P)`
-///   reaches 4), so a long absence of the accelerometer cannot overflow it.
+/// - The quaternion's covariance is forgotten only while it is below its steady state at
+///   full weight: after a stretch of down-weighted samples the gain never exceeds the nominal
+///   one (plain forgetting let it grow and then snap to the next accelerometer sample, and
+///   tripled the BROAD errors), and a long absence of the accelerometer cannot overflow it.
+/// - In 9D the accelerometer quaternion is the TRIAD [`acc_mag_quat`]: its heading comes from
+///   the field levelled with the accelerometer's tilt, and so the tilt and heading rows have
+///   the same gain (`fusion_tau`).
+/// - Defaults were chosen on the simulated presets and the four BROAD trials (see the
+///   project notes, seed000.md); they are not the source's (it gives none).
 #[derive(Clone, Debug)]
 pub struct LsqFusion<T: Lane> {
     hampel: [Hampel<T, 5>; 3],
@@ -125,7 +136,7 @@ pub struct LsqFusion<T: Lane> {
 /// Gravity the accelerometer weight compares the specific-force norm with, m/s².
 const GRAVITY: f64 = 9.81;
 
-/// Prior variance of each quaternion component of the fusion (and its ceiling, see above).
+/// Prior variance of each quaternion component of the fusion.
 const FUSION_PRIOR: f64 = 1.0;
 
 impl<T: Lane> LsqFusion<T> {
