@@ -265,3 +265,34 @@ fn against_complementary_on_broad() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// `Potter::predict`: `x ← F x`, `P ← F P Fᵀ/λ` against the dense product; a bad `λ` or `F`
+/// leaves the lane as it was; refused with covariance bounds.
+#[test]
+fn potter_predict_is_the_transition() {
+    use rootfuse_lane::{Mat, Vector};
+    use rootfuse_lsq::rls::{Potter, RecursiveLeastSquares, RlsConfig, RlsError};
+    let x0 = Vector::<f64, 2>::from_column([1.0, -2.0]);
+    let p0 = Mat::from_rows([[2.0, 0.3], [0.3, 1.0]]);
+    let mut rls = Potter::new(&x0, &p0, RlsConfig::new(1.0)).unwrap();
+    let f = Mat::from_rows([[1.0, 0.5], [0.0, 1.0]]);
+    assert!(rls.predict(&f, 0.8).unwrap());
+    let want = (f * p0 * f.transpose()).scale(1.0 / 0.8);
+    let got = rls.covariance();
+    for i in 0..2 {
+        for j in 0..2 {
+            assert!((got.m[i][j] - want.m[i][j]).abs() < 1e-12);
+        }
+    }
+    assert_eq!(rls.estimate().m, (f * x0).m);
+    let before = (rls.estimate().m, rls.covariance().m);
+    assert!(!rls.predict(&f, 1.5).unwrap());
+    assert!(!rls.predict(&f, f64::NAN).unwrap());
+    assert!(!rls.predict(&f.scale(f64::INFINITY), 0.9).unwrap());
+    assert_eq!(before, (rls.estimate().m, rls.covariance().m));
+    let mut bounded = Potter::new(&x0, &p0, RlsConfig::new(0.99).with_bounds(0.0, 10.0)).unwrap();
+    assert_eq!(
+        bounded.predict(&f, 1.0),
+        Err(RlsError::TransitionWithBounds)
+    );
+}

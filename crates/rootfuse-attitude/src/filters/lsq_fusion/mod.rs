@@ -150,6 +150,7 @@ impl<T: Lane> LsqFusion<T> {
         );
         let positive = |v: f64, default: f64| if v > 0.0 && v.is_finite() { v } else { default };
         let acc_noise = positive(p.acc_noise, 0.02);
+        let mag_ratio = positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.2);
         Self {
             hampel: core::array::from_fn(|_| Hampel::new(p.hampel_k)),
             smooth: core::array::from_fn(|_| LowPass::new(p.smooth)),
@@ -170,9 +171,7 @@ impl<T: Lane> LsqFusion<T> {
             acc_weight: T::from_f64(1.0 / (acc_noise * acc_noise)),
             inv_acc_dev: T::from_f64(1.0 / positive(p.acc_dev, 1.0)),
             nine_d: nine,
-            mag_drift_weight: T::from_f64(
-                (positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.05)).powi(2),
-            ),
+            mag_drift_weight: T::from_f64(mag_ratio * mag_ratio),
             limits: ScreenLimits::default(),
             rejections: Rejections::default(),
         }
