@@ -239,7 +239,8 @@ fn registry_names_and_errors() {
             "ekf",
             "sqrt-eskf",
             "ecf-ekf",
-            "complementary-reconstruction"
+            "complementary-reconstruction",
+            "lsq-fusion"
         ]
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();

@@ -14,5 +14,6 @@ mod mat;
 mod preprocess;
 mod quat;
 mod rls;
+mod seed_000;
 mod seed_001_004;
 mod sim;

@@ -20,14 +20,17 @@
 
 use rootfuse_lane::{Lane, Mask};
 
-/// State shared by the windowed filters: the ring buffer, the first-sample fill, the
-/// sample-and-hold of non-finite inputs and the rejection count.
+/// State shared by the windowed filters: the window (oldest first), the first-sample fill,
+/// the sample-and-hold of non-finite inputs and the rejection count.
+///
+/// A shift register rather than a ring buffer: a ring's write position is shared by all
+/// lanes, so one lane could not skip a sample without disturbing the age order of its window.
 #[derive(Clone, Debug)]
 struct Window<T: Lane, const W: usize> {
     buf: [T; W],
-    /// Samples in use, `1..=W` (the moving mean's window may be chosen at run time).
+    /// Samples in use, `1..=W`, the newest `len` slots at the end of `buf` (the moving
+    /// mean's window may be chosen at run time; the same for every lane).
     len: usize,
-    next: usize,
     hold: Hold<T>,
 }
 
@@ -37,20 +40,22 @@ impl<T: Lane, const W: usize> Window<T, W> {
         Self {
             buf: [T::zero(); W],
             len: W,
-            next: 0,
             hold: Hold::new(),
         }
     }
-    /// Stores the (held) sample; the first finite sample of a lane fills its whole window.
-    fn push(&mut self, x: T) -> T {
-        let (x, fresh) = self.hold.accept(x);
+    /// Stores the (held) sample in `active` lanes (the others keep their window exactly); the
+    /// first finite sample of a lane fills its whole window.
+    fn push_where(&mut self, x: T, active: T::Mask) -> T {
+        let (x, fresh) = self.hold.accept_where(x, active);
         if fresh.any() {
             for slot in &mut self.buf {
                 *slot = T::select(fresh, x, *slot);
             }
         }
-        self.buf[self.next] = x;
-        self.next = (self.next + 1) % self.len;
+        for i in W - self.len + 1..W {
+            self.buf[i - 1] = T::select(active, self.buf[i], self.buf[i - 1]);
+        }
+        self.buf[W - 1] = T::select(active, x, self.buf[W - 1]);
         x
     }
 }
@@ -71,11 +76,12 @@ impl<T: Lane> Hold<T> {
             rejected: T::Counts::default(),
         }
     }
-    /// `x` where finite, else the last finite input; and the lanes whose first finite input
-    /// this is.
-    fn accept(&mut self, x: T) -> (T, T::Mask) {
-        let ok = x.is_finite();
-        T::count(&mut self.rejected, !ok);
+    /// In `active` lanes: `x` where finite, else the last finite input; and the lanes whose
+    /// first finite input this is. Inactive lanes change nothing and count nothing.
+    fn accept_where(&mut self, x: T, active: T::Mask) -> (T, T::Mask) {
+        let finite = x.is_finite();
+        T::count(&mut self.rejected, active & !finite);
+        let ok = finite & active;
         let fresh = ok & !self.started;
         self.started |= ok;
         self.last = T::select(ok, x, self.last);
@@ -128,9 +134,15 @@ impl<T: Lane> LowPass<T> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        let (x, fresh) = self.hold.accept(x);
+        self.update_where(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in `active` lanes; the other lanes keep their state exactly (a
+    /// sample their caller rejected) and return their last output.
+    pub fn update_where(&mut self, x: T, active: T::Mask) -> T {
+        let (x, fresh) = self.hold.accept_where(x, active);
         let previous = T::select(fresh, x, self.y);
-        self.y = self.a.mul_add(x - previous, previous);
+        let y = self.a.mul_add(x - previous, previous);
+        self.y = T::select(active, y, self.y);
         self.y
     }
     /// Per-lane count of rejected (non-finite) inputs.
@@ -169,10 +181,10 @@ impl<T: Lane, const N: usize> MovingMean<T, N> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push(x);
+        self.window.push_where(x, <T::Mask as Mask>::splat(true));
         // Summing the window each time (N is small) avoids the drift of a running sum in f32.
         let mut sum = T::zero();
-        for v in &self.window.buf[..self.window.len] {
+        for v in &self.window.buf[N - self.window.len..] {
             sum += *v;
         }
         sum / T::from_f64(self.window.len as f64)
@@ -205,7 +217,7 @@ impl<T: Lane, const W: usize> MovingMedian<T, W> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push(x);
+        self.window.push_where(x, <T::Mask as Mask>::splat(true));
         median(&self.window.buf)
     }
     /// Per-lane count of rejected (non-finite) inputs.
@@ -236,11 +248,16 @@ impl<T: Lane, const W: usize> Hampel<T, W> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        let x = self.window.push(x);
+        self.update_where(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in `active` lanes; the other lanes keep their window exactly (a
+    /// sample their caller rejected), count nothing, and return their held input.
+    pub fn update_where(&mut self, x: T, active: T::Mask) -> T {
+        let x = self.window.push_where(x, active);
         let m = median(&self.window.buf);
         let deviations = self.window.buf.map(|v| (v - m).abs());
         let mad = median(&deviations);
-        let outlier = (x - m).abs().simd_gt(self.k * mad);
+        let outlier = (x - m).abs().simd_gt(self.k * mad) & active;
         T::count(&mut self.replaced, outlier);
         T::select(outlier, m, x)
     }

@@ -155,6 +155,7 @@ registry! {
     SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
     EcfEkf => "ecf-ekf", EcfEkf, EcfEkfParams, "Seed 004: moving average, Mahony ECF with magnetometer, 7-state EKF observing the ECF quaternion.";
     ComplementaryReconstruction => "complementary-reconstruction", ComplementaryReconstruction, ComplementaryReconstructionParams, "Seed 001: rotation-vector gyro update blended with the acc/mag quaternion by the motion parameter α.";
+    LsqFusion => "lsq-fusion", LsqFusion, LsqFusionParams, "Seed 000: LS quaternion fusion, gyro denoising by forgetting-factor LS, square-root RLS drift.";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.

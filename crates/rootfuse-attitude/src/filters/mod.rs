@@ -11,6 +11,7 @@ mod ecf_ekf;
 mod ekf;
 mod flagship;
 mod gyro;
+mod lsq_fusion;
 mod madgwick;
 mod mahony;
 mod params;
@@ -22,6 +23,9 @@ pub use ecf_ekf::{EcfEkf, EcfEkfParams};
 pub use ekf::{Ekf, EkfParams};
 pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
+pub use lsq_fusion::{
+    DriftConfig, DriftEstimator, DriftSample, LsqFusion, LsqFusionParams, PolyDenoiser,
+};
 pub use madgwick::{Madgwick, MadgwickParams};
 pub use mahony::{Mahony, MahonyParams};
 pub use params::ParamInfo;

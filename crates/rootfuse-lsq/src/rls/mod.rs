@@ -186,6 +186,10 @@ pub enum RlsError {
     /// The covariance is no longer positive definite (detected by the conventional or Joseph
     /// form); the update was not applied.
     LostDefiniteness,
+    /// A state transition ([`Potter::predict`]) was asked of an estimator with
+    /// [`CovarianceBounds`]: a general transition moves `P` and `trace(P⁻¹)` in ways the
+    /// bounded recursion does not track, so the bounds could no longer be guaranteed.
+    TransitionWithBounds,
 }
 
 impl core::fmt::Display for RlsError {
@@ -199,6 +203,7 @@ impl core::fmt::Display for RlsError {
             Self::RejectedSample => "sample rejected (non-finite data or weight <= 0)",
             Self::NumericalFailure => "update would produce a non-finite state",
             Self::LostDefiniteness => "covariance lost positive definiteness",
+            Self::TransitionWithBounds => "state transition with covariance bounds configured",
         })
     }
 }

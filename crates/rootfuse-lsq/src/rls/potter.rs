@@ -34,6 +34,44 @@ impl<T: Lane, const N: usize> Potter<T, N> {
         &self.s
     }
 
+    /// Time update with a known state transition and a per-lane forgetting factor:
+    /// `x ← F x`, `P ← F P Fᵀ / λ`, i.e. `S ← F S / √λ`.
+    ///
+    /// This is what recursive least squares needs when the parameters move in a known linear
+    /// way between measurements: a polynomial fitted about a moving time origin
+    /// (`F` re-expands it about the new origin), an orientation turned by a known rotation.
+    /// `F` is an exact reparametrisation of the weighted problem, so the estimate stays the
+    /// minimiser of the cost written in the new coordinates. `λ ∈ (0, 1]` per lane is the
+    /// forgetting of this step (1 = none); a forgetting factor derived from a time step, e.g.
+    /// `λ = τ/(τ + dt)`, gives a memory in seconds whatever the sample rate. Use it with
+    /// [`RlsConfig::new(1.0)`](RlsConfig::new) so that measurements do not forget again.
+    ///
+    /// Lanes where `F` or `λ` is not finite, `λ ∉ (0, 1]`, or the result is not finite are
+    /// left unchanged (counted as rejected input or numerical failure). Returns the lanes
+    /// where the step was applied. With `F = I` and `λ = 1` a lane keeps its values.
+    ///
+    /// # Errors
+    /// [`RlsError::TransitionWithBounds`] (and nothing changed) when the estimator has
+    /// [`CovarianceBounds`](super::CovarianceBounds).
+    pub fn predict(&mut self, f: &Mat<T, N, N>, lambda: T) -> Result<T::Mask, RlsError> {
+        if self.core.bounded() {
+            return Err(RlsError::TransitionWithBounds);
+        }
+        let zero = T::zero();
+        let one = T::one();
+        // NaN lands on the reject side: positive, ordered comparisons only.
+        let input_ok = f.is_finite() & lambda.simd_gt(zero) & lambda.simd_le(one);
+        let f0 = Mat::select(input_ok, f, &Mat::identity());
+        let inv_sqrt = one / T::select(input_ok, lambda, one).sqrt();
+        let x = f0 * self.x;
+        let s = (f0 * self.s).scale(inv_sqrt);
+        let finite = x.is_finite() & s.is_finite();
+        let applied = self.core.count(input_ok, finite);
+        self.x = Mat::select(applied, &x, &self.x);
+        self.s = Mat::select(applied, &s, &self.s);
+        Ok(applied)
+    }
+
     /// Forgetting plus one whitened measurement; (new state, finite, definite).
     fn step(&self, h: &Vector<T, N>, z: T, lambda: T) -> (Self, T::Mask, T::Mask) {
         let st = self.s.scale(T::one() / lambda.sqrt());
