@@ -116,6 +116,8 @@ fn rls_forms(c: &mut Criterion) {
     fn bench<T: Lane, F: RecursiveLeastSquares<T, N>, const N: usize>(
         group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
         precision: &str,
+        config: RlsConfig,
+        label: &str,
     ) {
         // A fixed pseudo-random stream (xorshift), the same for every form.
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -134,9 +136,9 @@ fn rls_forms(c: &mut Criterion) {
             .collect();
         let x0 = Vector::<T, N>::zeros();
         let p0 = Mat::<T, N, N>::identity().scale(T::from_f64(10.0));
-        let mut f = F::new(&x0, &p0, RlsConfig::new(0.999)).unwrap();
+        let mut f = F::new(&x0, &p0, config).unwrap();
         group.throughput(Throughput::Elements((SAMPLES * T::LANES) as u64));
-        group.bench_function(format!("{}/{precision}", F::NAME), |b| {
+        group.bench_function(format!("{}{label}/{precision}", F::NAME), |b| {
             b.iter(|| {
                 for (h, z) in black_box(&input) {
                     f.update(h, *z, T::one());
@@ -154,12 +156,15 @@ fn rls_forms(c: &mut Criterion) {
                 .measurement_time(std::time::Duration::from_secs(1));
             macro_rules! forms {
                 ($t:ty, $p:literal) => {
-                    bench::<$t, Conventional<$t, $n>, $n>(&mut group, $p);
-                    bench::<$t, Joseph<$t, $n>, $n>(&mut group, $p);
-                    bench::<$t, Potter<$t, $n>, $n>(&mut group, $p);
-                    bench::<$t, BiermanUd<$t, $n>, $n>(&mut group, $p);
-                    bench::<$t, InverseQr<$t, $n>, $n>(&mut group, $p);
-                    bench::<$t, InformationQr<$t, $n>, $n>(&mut group, $p);
+                    let c = RlsConfig::new(0.999);
+                    bench::<$t, Conventional<$t, $n>, $n>(&mut group, $p, c, "");
+                    bench::<$t, Joseph<$t, $n>, $n>(&mut group, $p, c, "");
+                    bench::<$t, Potter<$t, $n>, $n>(&mut group, $p, c, "");
+                    bench::<$t, BiermanUd<$t, $n>, $n>(&mut group, $p, c, "");
+                    bench::<$t, InverseQr<$t, $n>, $n>(&mut group, $p, c, "");
+                    bench::<$t, InformationQr<$t, $n>, $n>(&mut group, $p, c, "");
+                    let plain = c.without_compensation();
+                    bench::<$t, InformationQr<$t, $n>, $n>(&mut group, $p, plain, "-plain");
                 };
             }
             forms!(f32, "f32");

@@ -875,3 +875,60 @@ fn stress_scenarios_run_short() {
         }
     }
 }
+
+/// The information form's compensation is what makes it accurate over long f32 runs: with it
+/// off, plain Givens accumulation of `R` at λ = 1 loses about u·k (measured 3.5e-5 relative
+/// after 2e5 steps), with it on 4.7e-8; both against the f64 form on the same f32 data.
+#[test]
+fn information_qr_compensation_is_what_buys_accuracy() {
+    const N: usize = 8;
+    let x_true: [f64; N] = core::array::from_fn(|j| 1.0 + 0.5 * j as f64);
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let config = RlsConfig::new(1.0);
+    let prior32 = (
+        Vector::<f32, N>::zeros(),
+        Mat::<f32, N, N>::identity().scale(100.0),
+    );
+    let mut on = InformationQr::<f32, N>::new(&prior32.0, &prior32.1, config).unwrap();
+    let mut off =
+        InformationQr::<f32, N>::new(&prior32.0, &prior32.1, config.without_compensation())
+            .unwrap();
+    let prior64 = (
+        Vector::<f64, N>::zeros(),
+        Mat::<f64, N, N>::identity().scale(100.0),
+    );
+    let mut reference = InformationQr::<f64, N>::new(&prior64.0, &prior64.1, config).unwrap();
+    for _ in 0..200_000 {
+        let h: [f64; N] = core::array::from_fn(|_| uniform());
+        let z: f64 = h.iter().zip(&x_true).map(|(a, b)| a * b).sum::<f64>() + 1e-3 * uniform();
+        // The f64 reference sees exactly the f32 data.
+        let h32 = h.map(|v| v as f32);
+        let z32 = z as f32;
+        on.update(&Vector::from_column(h32), z32, 1.0);
+        off.update(&Vector::from_column(h32), z32, 1.0);
+        reference.update(
+            &Vector::from_column(h32.map(f64::from)),
+            f64::from(z32),
+            1.0,
+        );
+    }
+    let x_ref = reference.estimate();
+    let rel = |x: Vector<f32, N>| {
+        let num: f64 = (0..N).map(|j| (f64::from(x[j]) - x_ref[j]).powi(2)).sum();
+        let den: f64 = (0..N).map(|j| x_ref[j].powi(2)).sum();
+        (num / den).sqrt()
+    };
+    let (e_on, e_off) = (rel(on.estimate()), rel(off.estimate()));
+    assert!(e_on < 2e-7, "compensated {e_on:e}");
+    assert!(e_off < 1e-4, "plain {e_off:e}");
+    assert!(
+        e_off > 20.0 * e_on,
+        "plain {e_off:e} vs compensated {e_on:e}"
+    );
+}

@@ -28,6 +28,9 @@
 //! the exact rounding error of `R·hi` (Dekker's product) feed the compensation terms, so the
 //! forgetting step is compensated too.
 //!
+//! [`RlsConfig::without_compensation`] turns the compensation off (plain Givens updates) for
+//! users who prefer speed to the last digits.
+//!
 //! Windup protection's regularising rows need the estimate, one O(n²) back substitution per
 //! update, only computed when bounds are configured.
 
@@ -100,9 +103,22 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
         // 10⁻³ in f32 at λ = 0.9999), so its low part goes into the compensation terms.
         let (sl, sl_lo) = self.core.sqrt_lambda(lambda);
         let split = split_constant::<T>();
+        // The switch is the same for every lane: a uniform branch, no lane sees the other path.
+        let compensated = self.core.config().compensated;
         let scale = |v: T, lo: T| {
-            let (p, e) = two_prod(v, sl, split);
-            (p, v.mul_add(sl_lo, lo.mul_add(sl, e)))
+            if compensated {
+                let (p, e) = two_prod(v, sl, split);
+                (p, v.mul_add(sl_lo, lo.mul_add(sl, e)))
+            } else {
+                (v * sl, zero)
+            }
+        };
+        let add = |a: T, b: T| {
+            if compensated {
+                two_sum(a, b)
+            } else {
+                (a + b, zero)
+            }
         };
         let mut r = self.r;
         let mut r_lo = self.r_lo;
@@ -128,7 +144,7 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
             let c = T::select(nz, a / rr, one);
             let s = T::select(nz, b / rr, zero);
             let cm1 = T::select(nz, -grow / rr, zero);
-            let (v, lo) = two_sum(a, grow + r_lo.m[j][j]);
+            let (v, lo) = add(a, grow + r_lo.m[j][j]);
             r.m[j][j] = v;
             r_lo.m[j][j] = lo;
             row[j] = zero;
@@ -137,14 +153,14 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
                 let hv = row[k];
                 let delta = cm1.mul_add(rv, s * hv);
                 row[k] = c.mul_add(hv, -(s * rv));
-                let (v, lo) = two_sum(rv, delta + r_lo.m[j][k]);
+                let (v, lo) = add(rv, delta + r_lo.m[j][k]);
                 r.m[j][k] = v;
                 r_lo.m[j][k] = lo;
             }
             let zv = zeta[j];
             let delta = cm1.mul_add(zv, s * zr);
             zr = c.mul_add(zr, -(s * zv));
-            let (v, lo) = two_sum(zv, delta + zeta_lo[j]);
+            let (v, lo) = add(zv, delta + zeta_lo[j]);
             zeta[j] = v;
             zeta_lo[j] = lo;
         }
@@ -211,9 +227,12 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
         let (next, finite, _) = self.core.run(self, &x, &step, Self::step);
         let accepted = self.core.finish(&step, finite);
         self.r = Mat::select(accepted, &next.r, &self.r);
-        self.r_lo = Mat::select(accepted, &next.r_lo, &self.r_lo);
         self.zeta = Mat::select(accepted, &next.zeta, &self.zeta);
-        self.zeta_lo = Mat::select(accepted, &next.zeta_lo, &self.zeta_lo);
+        // Without compensation the low parts stay zero.
+        if self.core.config().compensated {
+            self.r_lo = Mat::select(accepted, &next.r_lo, &self.r_lo);
+            self.zeta_lo = Mat::select(accepted, &next.zeta_lo, &self.zeta_lo);
+        }
         accepted
     }
 

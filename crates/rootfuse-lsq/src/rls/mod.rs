@@ -128,21 +128,34 @@ pub struct RlsConfig {
     pub lambda: f64,
     /// Optional windup protection.
     pub bounds: Option<CovarianceBounds>,
+    /// [`InformationQr`] only (the other forms ignore it): accumulate `R` and `ζ` with
+    /// compensated sums (the default, see its documentation). Off, the form does plain
+    /// Givens updates: cheaper, but with λ = 1 its accumulated `R` loses about `u·k` (in f32
+    /// 3.5e-5 relative after 2·10⁵ steps, against 4.7e-8 compensated).
+    pub compensated: bool,
 }
 
 impl RlsConfig {
-    /// Forgetting factor `lambda`, no covariance bounds.
+    /// Forgetting factor `lambda`, no covariance bounds, compensated information form.
     pub const fn new(lambda: f64) -> Self {
         Self {
             lambda,
             bounds: None,
+            compensated: true,
         }
     }
     /// The same configuration with windup protection `p_min ≤ eig(P) ≤ p_max`.
     pub const fn with_bounds(self, p_min: f64, p_max: f64) -> Self {
         Self {
-            lambda: self.lambda,
             bounds: Some(CovarianceBounds { p_min, p_max }),
+            ..self
+        }
+    }
+    /// The same configuration with plain (uncompensated) accumulation in [`InformationQr`].
+    pub const fn without_compensation(self) -> Self {
+        Self {
+            compensated: false,
+            ..self
         }
     }
     fn validate(&self) -> Result<(), RlsError> {
