@@ -237,7 +237,8 @@ fn registry_names_and_errors() {
             "mahony",
             "madgwick",
             "ekf",
-            "sqrt-eskf"
+            "sqrt-eskf",
+            "heading-pipeline"
         ]
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();

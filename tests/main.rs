@@ -13,4 +13,5 @@ mod mat;
 mod preprocess;
 mod quat;
 mod rls;
+mod seed_003;
 mod sim;

@@ -149,6 +149,7 @@ registry! {
     Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
     Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
     SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
+    HeadingPipeline => "heading-pipeline", HeadingPipeline, HeadingPipelineParams, "Seed 003 MEMS heading: smoothed accelerometer inclination, 2-state heading/bias Kalman filter, 0.96 circular blend, declination.";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.
