@@ -142,7 +142,8 @@ impl HeadingFusion {
             .map(|(_, p)| *p)
             .collect();
         let now = self.last_t.unwrap_or(b.span[1]);
-        if in_span.is_empty() || !b.psi.is_finite() || !(b.std > 0.0) {
+        let std_ok = b.std.is_finite() && b.std > 0.0;
+        if in_span.is_empty() || !b.psi.is_finite() || !std_ok {
             self.refused += 1;
             return false;
         }
@@ -211,7 +212,8 @@ impl Pdr {
     pub fn correct(&mut self, fix: &Fix) {
         let r = 0.5 * (fix.covariance[0][0] + fix.covariance[1][1]);
         let finite = fix.position.iter().all(|v| v.is_finite());
-        if !(r > 0.0) || !r.is_finite() || !finite {
+        let r_ok = r.is_finite() && r > 0.0;
+        if !r_ok || !finite {
             return;
         }
         let k = self.var / (self.var + r);

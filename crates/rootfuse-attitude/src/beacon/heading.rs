@@ -230,7 +230,8 @@ pub fn heading_from_fixes(fixes: &[Fix], min_displacement: f64) -> Option<Beacon
     let (ve, vn) = (se / stt, sn / stt);
     let speed = ve.hypot(vn);
     let span = [fixes[0].t, fixes[fixes.len() - 1].t];
-    if !(speed * (span[1] - span[0]) >= min_displacement) {
+    let moved = speed * (span[1] - span[0]);
+    if moved.is_nan() || moved < min_displacement {
         return None;
     }
     let var_p = fixes

@@ -12,57 +12,57 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use std::vec::Vec;
 
-/// Settings of the simulated walk (defaults in brackets).
+/// Settings of the simulated walk.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WalkConfig {
     /// RNG seed.
     pub seed: u64,
-    /// Duration, s [600].
+    /// Duration, s (default 600).
     pub duration: f64,
-    /// IMU rate, Hz [100].
+    /// IMU rate, Hz (default 100).
     pub rate: f64,
-    /// Walking speed, m/s [1.2].
+    /// Walking speed, m/s (default 1.2).
     pub speed: f64,
-    /// Step frequency, Hz [1.8]; step length is `speed / step_freq`.
+    /// Step frequency, Hz (default 1.8); step length is `speed / step_freq`.
     pub step_freq: f64,
-    /// Corridor loop, east × north extent, m [40 × 20].
+    /// Corridor loop, east × north extent, m (default 40 × 20).
     pub loop_size: [f64; 2],
-    /// Corner radius of the walked path, m [1.5].
+    /// Corner radius of the walked path, m (default 1.5).
     pub corner_radius: f64,
-    /// Beacon spacing along the path, m [5]; classes cycle weak, medium, weak, strong.
+    /// Beacon spacing along the path, m (default 5); classes cycle weak, medium, weak, strong.
     pub beacon_spacing: f64,
-    /// Beacon offset from the walked line (toward the outer wall), m [1].
+    /// Beacon offset from the walked line (toward the outer wall), m (default 1).
     pub beacon_offset: f64,
-    /// True path-loss exponent [2.0].
+    /// True path-loss exponent (default 2.0).
     pub path_loss_n: f64,
-    /// Log-normal shadowing std (one draw per beacon and scan), dB [4].
+    /// Log-normal shadowing std (one draw per beacon and scan), dB (default 4).
     pub shadowing_db: f64,
-    /// Per-reading fast-fading std, dB [2].
+    /// Per-reading fast-fading std, dB (default 2).
     pub fading_db: f64,
-    /// Scan threshold, dBm [−95].
+    /// Scan threshold, dBm (default −95).
     pub threshold: f64,
-    /// Advertisements per beacon per 1 s scan [5], each received with `reception` [0.6].
+    /// Advertisements per beacon per 1 s scan (default 5), each received with `reception` (default 0.6).
     pub adverts_per_scan: usize,
-    /// Probability of receiving one advertisement [0.6].
+    /// Probability of receiving one advertisement (default 0.6).
     pub reception: f64,
-    /// Probability that a whole scan returns nothing (scan gap) [0.05].
+    /// Probability that a whole scan returns nothing (scan gap) (default 0.05).
     pub scan_gap: f64,
-    /// Std of each gyro-bias axis (one draw per seed), rad/s [0.002].
+    /// Std of each gyro-bias axis (one draw per seed), rad/s (default 0.002).
     pub gyro_bias_std: f64,
-    /// Gyro white noise per sample, rad/s [0.01].
+    /// Gyro white noise per sample, rad/s (default 0.01).
     pub gyro_noise: f64,
-    /// Accelerometer noise per sample, m/s² [0.2].
+    /// Accelerometer noise per sample, m/s² (default 0.2).
     pub acc_noise: f64,
-    /// Magnetometer noise per sample, µT [0.5].
+    /// Magnetometer noise per sample, µT (default 0.5).
     pub mag_noise: f64,
-    /// Amplitude of the indoor field disturbance (smooth in space), µT [15].
+    /// Amplitude of the indoor field disturbance (smooth in space), µT (default 15).
     pub mag_disturbance: f64,
-    /// Magnetic declination, rad, east positive [0.087 ≈ 5°].
+    /// Magnetic declination, rad, east positive (default 0.087 ≈ 5°).
     pub declination: f64,
-    /// The pipeline runs in 9D (disturbed magnetometer) or 6D (gyro heading) [6].
+    /// The pipeline runs in 9D (disturbed magnetometer) or 6D (gyro heading) (default 6).
     pub dof: u8,
     /// Beacon fixes also correct the PDR position (the source's "positioning correction")
-    /// [true].
+    /// (default true).
     pub position_fixes: bool,
 }
 
@@ -479,8 +479,13 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
     report.rms_mems = (sum_m / n as f64).sqrt();
     report.rms_beacon = (sum_b / n as f64).sqrt();
     report.fix_rms.0 = (report.fix_rms.0 / report.fix_rms.1.max(1) as f64).sqrt();
-    for i in 0..2 {
-        report.beacon_heading_rms[i] = (hd_err[i] / report.decisions[i].max(1) as f64).sqrt();
+    for ((rms, err), count) in report
+        .beacon_heading_rms
+        .iter_mut()
+        .zip(hd_err)
+        .zip(report.decisions)
+    {
+        *rms = (err / count.max(1) as f64).sqrt();
     }
     Ok(report)
 }
