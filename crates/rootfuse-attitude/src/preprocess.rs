@@ -20,12 +20,12 @@
 
 use rootfuse_lane::{Lane, Mask};
 
-/// State shared by the windowed filters: the ring buffer, the first-sample fill, the
-/// sample-and-hold of non-finite inputs and the rejection count.
+/// State shared by the windowed filters: the window (oldest first, shifted per lane so a
+/// lane can skip a step), the first-sample fill, the sample-and-hold of non-finite inputs and
+/// the rejection count.
 #[derive(Clone, Debug)]
 struct Window<T: Lane, const W: usize> {
     buf: [T; W],
-    next: usize,
     hold: Hold<T>,
 }
 
@@ -34,20 +34,25 @@ impl<T: Lane, const W: usize> Window<T, W> {
         const { assert!(W >= 1, "the window holds at least one sample") };
         Self {
             buf: [T::zero(); W],
-            next: 0,
             hold: Hold::new(),
         }
     }
-    /// Stores the (held) sample; the first finite sample of a lane fills its whole window.
-    fn push(&mut self, x: T) -> T {
-        let (x, fresh) = self.hold.accept(x);
+    /// Stores the (held) sample in the `active` lanes; the first finite sample of a lane
+    /// fills its whole window. Inactive lanes are left exactly as they were.
+    fn push(&mut self, x: T, active: T::Mask) -> T {
+        let (x, fresh) = self.hold.accept(x, active);
         if fresh.any() {
             for slot in &mut self.buf {
                 *slot = T::select(fresh, x, *slot);
             }
         }
-        self.buf[self.next] = x;
-        self.next = (self.next + 1) % W;
+        // A per-lane shift instead of a ring index shared by all lanes: the filters' outputs
+        // (mean, median, MAD) do not depend on the order, but a lane that skips a step must
+        // keep its own oldest sample next in line.
+        for i in 1..W {
+            self.buf[i - 1] = T::select(active, self.buf[i], self.buf[i - 1]);
+        }
+        self.buf[W - 1] = T::select(active, x, self.buf[W - 1]);
         x
     }
 }
@@ -69,10 +74,10 @@ impl<T: Lane> Hold<T> {
         }
     }
     /// `x` where finite, else the last finite input; and the lanes whose first finite input
-    /// this is.
-    fn accept(&mut self, x: T) -> (T, T::Mask) {
-        let ok = x.is_finite();
-        T::count(&mut self.rejected, !ok);
+    /// this is. Only `active` lanes count, start or hold.
+    fn accept(&mut self, x: T, active: T::Mask) -> (T, T::Mask) {
+        let ok = x.is_finite() & active;
+        T::count(&mut self.rejected, active & !x.is_finite());
         let fresh = ok & !self.started;
         self.started |= ok;
         self.last = T::select(ok, x, self.last);
@@ -125,9 +130,14 @@ impl<T: Lane> LowPass<T> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        let (x, fresh) = self.hold.accept(x);
+        self.update_masked(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in the `active` lanes; the other lanes are left exactly as if the
+    /// sample did not exist (their current output is returned).
+    pub fn update_masked(&mut self, x: T, active: T::Mask) -> T {
+        let (x, fresh) = self.hold.accept(x, active);
         let previous = T::select(fresh, x, self.y);
-        self.y = self.a.mul_add(x - previous, previous);
+        self.y = T::select(active, self.a.mul_add(x - previous, previous), self.y);
         self.y
     }
     /// Per-lane count of rejected (non-finite) inputs.
@@ -157,7 +167,12 @@ impl<T: Lane, const N: usize> MovingMean<T, N> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push(x);
+        self.update_masked(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in the `active` lanes; the other lanes are left exactly as if the
+    /// sample did not exist (their current mean is returned).
+    pub fn update_masked(&mut self, x: T, active: T::Mask) -> T {
+        self.window.push(x, active);
         // Summing the window each time (N is small) avoids the drift of a running sum in f32.
         let mut sum = T::zero();
         for v in &self.window.buf {
@@ -193,7 +208,12 @@ impl<T: Lane, const W: usize> MovingMedian<T, W> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push(x);
+        self.update_masked(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in the `active` lanes; the other lanes are left exactly as if the
+    /// sample did not exist (their current median is returned).
+    pub fn update_masked(&mut self, x: T, active: T::Mask) -> T {
+        self.window.push(x, active);
         median(&self.window.buf)
     }
     /// Per-lane count of rejected (non-finite) inputs.
@@ -224,7 +244,7 @@ impl<T: Lane, const W: usize> Hampel<T, W> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        let x = self.window.push(x);
+        let x = self.window.push(x, <T::Mask as Mask>::splat(true));
         let m = median(&self.window.buf);
         let deviations = self.window.buf.map(|v| (v - m).abs());
         let mad = median(&deviations);

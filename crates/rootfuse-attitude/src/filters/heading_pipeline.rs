@@ -52,14 +52,16 @@ impl<T: Lane> Chain<T> {
             median: MovingMedian::new(),
         }
     }
-    fn update(&mut self, x: T) -> T {
-        self.median
-            .update(self.mean.update(self.low_pass.update(x)))
+    fn update(&mut self, x: T, active: T::Mask) -> T {
+        let y = self.low_pass.update_masked(x, active);
+        let y = self.mean.update_masked(y, active);
+        self.median.update_masked(y, active)
     }
 }
 
 /// The chain on the three components of a vector; `ok` false feeds NaN, which the chain holds
-/// (its last accepted value) instead of letting it in.
+/// (its last accepted value) instead of letting it in; lanes outside `active` (a skipped
+/// sample) do not move at all.
 #[derive(Clone, Debug)]
 struct VecChain<T: Lane>([Chain<T>; 3]);
 
@@ -67,13 +69,13 @@ impl<T: Lane> VecChain<T> {
     fn new(a: f64) -> Self {
         Self([Chain::new(a), Chain::new(a), Chain::new(a)])
     }
-    fn update(&mut self, v: Vec3<T>, ok: T::Mask) -> Vec3<T> {
+    fn update(&mut self, v: Vec3<T>, ok: T::Mask, active: T::Mask) -> Vec3<T> {
         let nan = T::from_f64(f64::NAN);
         let [x, y, z] = v.to_array().map(|c| T::select(ok, c, nan));
         Vec3::new(
-            self.0[0].update(x),
-            self.0[1].update(y),
-            self.0[2].update(z),
+            self.0[0].update(x, active),
+            self.0[1].update(y, active),
+            self.0[2].update(z, active),
         )
     }
 }
@@ -204,7 +206,9 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
 
         // Inclination path.
         let q_prop = integrate_gyro(q0, s.gyr, s.dt);
-        let a_earth = self.acc_chain.update(q_prop.rotate(s.acc), s.acc_ok);
+        let a_earth = self
+            .acc_chain
+            .update(q_prop.rotate(s.acc), s.acc_ok, s.step);
         let (a_earth, a_ok) = a_earth.try_normalize();
         let k_acc = (s.dt / self.tau_acc).min(T::one());
         let tilt_full = tilt_correction(a_earth);
@@ -226,7 +230,9 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
 
         // 6D is the same for every lane and has no measurement: skipping changes no bits.
         if self.nine_d {
-            let h = self.mag_chain.update(q_tilted.rotate(s.mag), s.mag_ok);
+            let h = self
+                .mag_chain
+                .update(q_tilted.rotate(s.mag), s.mag_ok, s.step);
             let (err, h_ok) = true_heading_error(Quat::identity(), h, self.declination);
             let ok = s.mag_ok & h_ok;
             let psi_mag = (psi_prop + err).wrap_pi();
