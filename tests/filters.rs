@@ -240,7 +240,8 @@ fn registry_names_and_errors() {
             "sqrt-eskf",
             "ecf-ekf",
             "complementary-reconstruction",
-            "lsq-fusion"
+            "lsq-fusion",
+            "heading-pipeline"
         ]
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();

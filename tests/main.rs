@@ -16,4 +16,5 @@ mod quat;
 mod rls;
 mod seed_000;
 mod seed_001_004;
+mod seed_003;
 mod sim;

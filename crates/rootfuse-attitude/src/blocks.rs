@@ -77,3 +77,46 @@ pub fn magnetic_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> (T, T::Mask)
         & hxy2.simd_gt(T::zero());
     (T::select(ok, h.x.atan2(h.y), T::zero()), ok)
 }
+
+/// [`magnetic_heading_error`] toward **true** north: the rotation about earth-z (rad,
+/// counter-clockwise seen from above, `[-π, π]`) that turns `q` so its horizontal field points
+/// at magnetic north, which lies `declination` (rad, **east positive**, the usual sign) east of
+/// true north (+y in ENU). `wrap(atan2(h_x, h_y) − declination)` with `h = q.rotate(mag)`.
+///
+/// With `declination = 0` this equals [`magnetic_heading_error`] bit for bit. Same mask.
+pub fn true_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>, declination: T) -> (T, T::Mask) {
+    let (dpsi, ok) = magnetic_heading_error(q, mag);
+    (T::select(ok, (dpsi - declination).wrap_pi(), T::zero()), ok)
+}
+
+/// Tilt-compensated true heading from one accelerometer and magnetometer sample: the yaw
+/// `ψ` (rad, `[-π, π]`, counter-clockwise about earth-up, 0 when the sensor's +y axis points
+/// to true north) such that `qz(ψ) ⊗ q_tilt` is the sensor orientation, where `q_tilt` is the
+/// inclination from `acc` ([`tilt_from_acc`]). `declination` is in rad, east positive.
+///
+/// Closed form for a level sensor at yaw `ψ0` in a field whose horizontal part points
+/// `declination` east of true north: returns `ψ0` (see the tests).
+///
+/// Reading of the source (seed 003, S2): its sensor frame (X right, Y forward, Z up) is our
+/// sensor frame with ENU, so its "nose left positive" yaw is our counter-clockwise `ψ`. The
+/// source levels the magnetometer with the pitch and roll rotations from the accelerometer;
+/// here that levelling is the inclination quaternion of [`tilt_from_acc`] (the same angles
+/// when the tilt is small, and well defined at any tilt). The source writes
+/// `ψ_north = ψ_m + Δψ`, which is the rule for a clockwise bearing `β = −ψ` with an
+/// east-positive declination; in the counter-clockwise yaw used here it reads
+/// `ψ_true = ψ_mag − Δψ` (the same physical correction, `β_true = β_mag + Δψ`).
+///
+/// The mask is false where `acc` or the horizontal field is unusable (as in
+/// [`tilt_from_acc`] and [`magnetic_heading_error`]); the value is then 0.
+pub fn tilt_compensated_heading<T: Lane>(
+    acc: Vec3<T>,
+    mag: Vec3<T>,
+    declination: T,
+) -> (T, T::Mask) {
+    let (tilt, acc_ok) = tilt_from_acc(acc);
+    // Turning the zero-heading tilt left by the error brings the field to magnetic north: that
+    // turn is the sensor's own yaw.
+    let (psi, mag_ok) = true_heading_error(tilt, mag, declination);
+    let ok = acc_ok & mag_ok;
+    (T::select(ok, psi, T::zero()), ok)
+}

@@ -20,6 +20,8 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+#[cfg(feature = "std")]
+pub mod beacon;
 pub mod blocks;
 pub mod filters;
 pub mod frames;

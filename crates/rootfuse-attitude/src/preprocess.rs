@@ -181,7 +181,12 @@ impl<T: Lane, const N: usize> MovingMean<T, N> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push_where(x, <T::Mask as Mask>::splat(true));
+        self.update_where(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in the `active` lanes; the other lanes are left exactly as if the
+    /// sample did not exist (their current mean is returned).
+    pub fn update_where(&mut self, x: T, active: T::Mask) -> T {
+        self.window.push_where(x, active);
         // Summing the window each time (N is small) avoids the drift of a running sum in f32.
         let mut sum = T::zero();
         for v in &self.window.buf[N - self.window.len..] {
@@ -217,7 +222,12 @@ impl<T: Lane, const W: usize> MovingMedian<T, W> {
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {
-        self.window.push_where(x, <T::Mask as Mask>::splat(true));
+        self.update_where(x, <T::Mask as Mask>::splat(true))
+    }
+    /// Filters one sample in the `active` lanes; the other lanes are left exactly as if the
+    /// sample did not exist (their current median is returned).
+    pub fn update_where(&mut self, x: T, active: T::Mask) -> T {
+        self.window.push_where(x, active);
         median(&self.window.buf)
     }
     /// Per-lane count of rejected (non-finite) inputs.

@@ -11,6 +11,7 @@ mod ecf_ekf;
 mod ekf;
 mod flagship;
 mod gyro;
+mod heading_pipeline;
 mod lsq_fusion;
 mod madgwick;
 mod mahony;
@@ -23,6 +24,7 @@ pub use ecf_ekf::{EcfEkf, EcfEkfParams};
 pub use ekf::{Ekf, EkfParams};
 pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
+pub use heading_pipeline::{HeadingPipeline, HeadingPipelineParams};
 pub use lsq_fusion::{
     DriftConfig, DriftEstimator, DriftSample, LsqFusion, LsqFusionParams, PolyDenoiser,
 };
