@@ -8,6 +8,7 @@ mod common;
 mod data_io;
 mod filters;
 mod flagship;
+mod fuzz_corpus;
 mod lane;
 mod mat;
 mod preprocess;

@@ -156,6 +156,9 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
             let rjj = r.m[j][j];
             numeric_ok &= rjj.simd_gt(zero) & (one / (rjj * rjj)).is_finite();
         }
+        // R and ζ finite do not make x = R⁻¹ζ finite: the back substitution can overflow
+        // (found by fuzzing). One O(n²) solve, the same order as the update itself.
+        numeric_ok &= r.solve_upper(&zeta).is_finite();
         let state = Self {
             r,
             r_lo,
