@@ -188,10 +188,15 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
             return Err(RlsError::PriorNotPositiveDefinite);
         }
         let r = g.transpose();
+        let zeta = r * *x0;
+        // ζ = R x₀ overflows for a huge (finite) x₀ with a small P₀ (found by fuzzing).
+        if !(zeta.is_finite() & r.solve_upper(&zeta).is_finite()).all() {
+            return Err(RlsError::NonFinitePrior);
+        }
         Ok(Self {
             r,
             r_lo: Mat::zeros(),
-            zeta: r * *x0,
+            zeta,
             zeta_lo: Vector::zeros(),
             core,
         })
