@@ -9,6 +9,7 @@ mod data_io;
 mod filters;
 mod flagship;
 mod frames;
+mod fuzz_corpus;
 mod lane;
 mod mat;
 mod preprocess;

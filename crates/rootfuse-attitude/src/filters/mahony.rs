@@ -83,9 +83,11 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
 
         let learn = e.norm().simd_lt(self.bias_gate);
         let bias = Vec3::select(learn, self.bias - e * (self.ki * s.dt), self.bias);
-        // Anti-windup: scale the bias back onto the ball of radius max_bias.
+        // Anti-windup: scale the bias back onto the ball of radius max_bias. Inside the ball
+        // the bias is kept as it is: `max_bias / max_bias` would be 0/0 with `max_bias = 0`.
         let n = bias.norm();
-        let bias = bias * (self.max_bias / n.max(self.max_bias));
+        let outside = n.simd_gt(self.max_bias);
+        let bias = Vec3::select(outside, bias * (self.max_bias / n), bias);
         let omega = s.gyr - bias + e * self.kp;
         let q_new = integrate_gyro(q, omega, s.dt);
 

@@ -172,6 +172,9 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
             let rjj = r.m[j][j];
             numeric_ok &= rjj.simd_gt(zero) & (one / (rjj * rjj)).is_finite();
         }
+        // R and ζ finite do not make x = R⁻¹ζ finite: the back substitution can overflow
+        // (found by fuzzing). One O(n²) solve, the same order as the update itself.
+        numeric_ok &= r.solve_upper(&zeta).is_finite();
         let state = Self {
             r,
             r_lo,
@@ -201,10 +204,15 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
             return Err(RlsError::PriorNotPositiveDefinite);
         }
         let r = g.transpose();
+        let zeta = r * *x0;
+        // ζ = R x₀ overflows for a huge (finite) x₀ with a small P₀ (found by fuzzing).
+        if !(zeta.is_finite() & r.solve_upper(&zeta).is_finite()).all() {
+            return Err(RlsError::NonFinitePrior);
+        }
         Ok(Self {
             r,
             r_lo: Mat::zeros(),
-            zeta: r * *x0,
+            zeta,
             zeta_lo: Vector::zeros(),
             core,
         })

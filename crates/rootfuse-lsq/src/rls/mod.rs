@@ -186,7 +186,7 @@ pub enum RlsError {
     InvalidForgettingFactor,
     /// The covariance bounds are not `0 ≤ n·p_min < p_max` (or are NaN).
     InvalidBounds,
-    /// `x₀` is not finite in some lane.
+    /// `x₀` is not finite in some lane (for the information form also: `R₀ x₀` overflows).
     NonFinitePrior,
     /// `P₀` is not symmetric positive definite (or not finite) in some lane.
     PriorNotPositiveDefinite,

@@ -1,0 +1,264 @@
+//! Every recursive least-squares form on arbitrary regressors, measurements, weights and λ.
+
+use crate::Bytes;
+use rootfuse_lane::{Lane, Mat, Vector};
+use rootfuse_lsq::rls::{
+    BiermanUd, Conventional, InformationQr, InverseQr, Joseph, Potter, RecursiveLeastSquares,
+    RlsConfig, RlsError,
+};
+
+/// Most operations one input runs.
+const MAX_OPS: usize = 200;
+
+/// Fuzz target `rls_forms`: one RLS form (byte 0 picks form, size `n ∈ {1, 2, 4}` and `f32` or
+/// `f64`), an arbitrary configuration and prior, then arbitrary scalar updates, two-row vector
+/// updates and (Bierman U-D) process-noise time updates.
+///
+/// Invariants: no panic; construction fails exactly when the configuration or the prior is
+/// invalid; after every operation the estimate and the covariance are finite and the
+/// covariance exactly symmetric; a sample with non-finite `h`, `‖h‖²`, `z` or weight, or a
+/// weight `≤ 0`, is not applied, leaves the state bit for bit and counts one
+/// `rejected_input`; every scalar update counts exactly one of accepted / rejected input /
+/// rejected numerically; for the factored forms every pivot of the factor is positive and
+/// finite and `> 0` for moderate data (the represented covariance is positive definite; see
+/// `run` for the range), `≥ 0` for any data (semidefinite: a variance may underflow) and the
+/// formed covariance has a non-negative diagonal; with covariance
+/// bounds, `P ⪯ p_max·I` up to a relative `10·n·u`.
+pub fn rls_forms(data: &[u8]) {
+    let mut input = Bytes::new(data);
+    let sel = input.u8();
+    let form = (sel >> 3) % 6;
+    match (sel & 1 == 1, (sel >> 1) % 3) {
+        (true, 0) => by_form::<f32, 1>(form, &mut input, true),
+        (true, 1) => by_form::<f32, 2>(form, &mut input, true),
+        (true, _) => by_form::<f32, 4>(form, &mut input, true),
+        (false, 0) => by_form::<f64, 1>(form, &mut input, false),
+        (false, 1) => by_form::<f64, 2>(form, &mut input, false),
+        (false, _) => by_form::<f64, 4>(form, &mut input, false),
+    }
+}
+
+type Extra<T, F, const N: usize> = fn(&mut F, &Vector<T, N>) -> <T as Lane>::Mask;
+
+fn by_form<T: Lane<Scalar = T, Mask = bool> + Into<f64>, const N: usize>(
+    form: u8,
+    input: &mut Bytes,
+    single: bool,
+) {
+    match form {
+        0 => run::<T, Conventional<T, N>, N>(input, single, false, None),
+        1 => run::<T, Joseph<T, N>, N>(input, single, false, None),
+        2 => run::<T, Potter<T, N>, N>(input, single, true, None),
+        3 => {
+            let tu: Extra<T, BiermanUd<T, N>, N> = |f, q| f.time_update(q);
+            run::<T, BiermanUd<T, N>, N>(input, single, true, Some(tu))
+        }
+        4 => run::<T, InverseQr<T, N>, N>(input, single, true, None),
+        _ => run::<T, InformationQr<T, N>, N>(input, single, true, None),
+    }
+}
+
+/// The configuration: λ mostly in `[0.745, 1]`, sometimes any value; bounds on a flag.
+fn config_from(input: &mut Bytes, single: bool) -> RlsConfig {
+    let b = input.u8();
+    let lambda = if b.is_multiple_of(4) {
+        input.value(single)
+    } else {
+        1.0 - f64::from(input.u8()) * 1e-3
+    };
+    let config = RlsConfig::new(lambda);
+    if b & 4 != 0 {
+        let lo = input.u8();
+        let hi = input.u8();
+        let p_min = if lo % 16 == 15 {
+            input.value(single)
+        } else {
+            10f64.powi(-i32::from(lo % 16)) * f64::from(lo >> 7)
+        };
+        let p_max = if hi % 16 == 15 {
+            f64::INFINITY
+        } else {
+            10f64.powi(i32::from(hi % 16) - 4)
+        };
+        config.with_bounds(p_min, p_max)
+    } else {
+        config
+    }
+}
+
+fn bits<T: Lane<Scalar = T> + Into<f64>, const R: usize, const C: usize>(
+    m: &Mat<T, R, C>,
+) -> Vec<u64> {
+    m.m.iter()
+        .flatten()
+        .map(|&v| Into::<f64>::into(v).to_bits())
+        .collect()
+}
+
+fn run<T, F, const N: usize>(
+    input: &mut Bytes,
+    single: bool,
+    factored: bool,
+    extra: Option<Extra<T, F, N>>,
+) where
+    T: Lane<Scalar = T, Mask = bool> + Into<f64>,
+    F: RecursiveLeastSquares<T, N>,
+{
+    let config = config_from(input, single);
+    let x0 = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+    let pb = input.u8();
+    let p0 = match (pb % 4, config.bounds) {
+        (0, _) => input.value(single),
+        (1, Some(b)) => b.p_max,
+        _ => 10f64.powi(i32::from(pb >> 4) - 6),
+    };
+    let p0 = T::from_f64(p0);
+    let name = F::NAME;
+    let config_ok = config.lambda > 0.0
+        && config.lambda <= 1.0
+        && config.bounds.is_none_or(|b| {
+            b.p_min >= 0.0
+                && b.p_min.is_finite()
+                && b.p_max > b.p_min
+                && N as f64 * b.p_min < b.p_max
+        });
+    let mut f = match F::with_isotropic_prior(&x0, p0, config) {
+        Ok(f) => {
+            assert!(config_ok, "{name}: invalid {config:?} accepted");
+            assert!(x0.is_finite(), "{name}: non-finite prior accepted");
+            let p: f64 = p0.into();
+            assert!(
+                p > 0.0 && p.is_finite(),
+                "{name}: prior variance {p} accepted"
+            );
+            f
+        }
+        Err(e) => {
+            let config_err = matches!(
+                e,
+                RlsError::InvalidForgettingFactor | RlsError::InvalidBounds
+            );
+            // A bad configuration may be reported as another error that is checked first
+            // (e.g. a non-finite x₀), but a configuration error means a bad configuration.
+            assert!(!config_err || !config_ok, "{name}: {e:?} for {config:?}");
+            let p: f64 = p0.into();
+            let x0_moderate = x0.m.iter().all(|r| Into::<f64>::into(r[0]).abs() <= 1e20);
+            if config_ok && config.bounds.is_none() && x0_moderate && (1e-6..=1e8).contains(&p) {
+                panic!("{name}: valid prior {p} rejected: {e:?}");
+            }
+            return;
+        }
+    };
+    let n_eps = N as f64 * T::EPSILON;
+    // While every regressor entry, weight and process noise is 0 or of magnitude in
+    // [1e-3, 1e3] and the prior variance in [1e-6, 1e8], no variance can fall below about
+    // 1e-15 in 200 operations, far above underflow: the strict positivity of the pivots is
+    // checked then. Outside, a variance may underflow to zero (ROBUSTNESS.md).
+    let mut moderate = (1e-6..=1e8).contains(&Into::<f64>::into(p0));
+    let track = |moderate: &mut bool, v: T| {
+        let a = Into::<f64>::into(v).abs();
+        *moderate &= a == 0.0 || (1e-3..=1e3).contains(&a);
+    };
+    for op in 0..MAX_OPS {
+        if input.is_empty() {
+            break;
+        }
+        let (x_before, p_before, h_before) = (f.estimate(), f.covariance(), f.health());
+        let kind = input.u8();
+        let mut scalar_input_ok = None;
+        if let (7, Some(extra)) = (kind % 8, extra) {
+            let q = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+            q.m.iter().for_each(|r| track(&mut moderate, r[0]));
+            let applied = extra(&mut f, &q);
+            let q_ok = q.is_finite() && q.m.iter().all(|r| r[0].simd_ge(T::zero()));
+            if !q_ok {
+                assert!(!applied, "{name} op {op}: invalid process noise applied");
+            }
+        } else if kind % 8 == 6 {
+            let h = Mat::<T, 2, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+            let z = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
+            let w = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
+            h.m.iter()
+                .flatten()
+                .chain(w.m.iter().flatten())
+                .for_each(|&v| track(&mut moderate, v));
+            f.update_vector(&h, &z, &w);
+        } else {
+            let h = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+            let z = T::from_f64(input.value(single));
+            let w = T::from_f64(input.value(single));
+            h.m.iter().for_each(|r| track(&mut moderate, r[0]));
+            track(&mut moderate, w);
+            let applied = f.update_with_forgetting(&h, z, w, kind & 16 != 0);
+            let input_ok = h.is_finite()
+                && h.dot(&h).is_finite()
+                && z.is_finite()
+                && w.is_finite()
+                && w.simd_gt(T::zero());
+            assert!(
+                !applied || input_ok,
+                "{name} op {op}: invalid sample applied"
+            );
+            scalar_input_ok = Some((input_ok, applied));
+        }
+        let (x, p, health) = (f.estimate(), f.covariance(), f.health());
+        if let Some((input_ok, applied)) = scalar_input_ok {
+            let c = |a: &T::Counts, b: &T::Counts| a.as_ref()[0] - b.as_ref()[0];
+            let (acc, rin, rnum) = (
+                c(&health.accepted, &h_before.accepted),
+                c(&health.rejected_input, &h_before.rejected_input),
+                c(&health.rejected_numerical, &h_before.rejected_numerical),
+            );
+            assert_eq!(
+                (acc, rin, rnum),
+                (
+                    u64::from(applied),
+                    u64::from(!input_ok),
+                    u64::from(input_ok && !applied)
+                ),
+                "{name} op {op}: counters"
+            );
+            if !applied {
+                assert!(
+                    bits(&x) == bits(&x_before) && bits(&p) == bits(&p_before),
+                    "{name} op {op}: a rejected sample changed the state"
+                );
+            }
+        }
+        assert!(x.is_finite(), "{name} op {op}: estimate {x:?}");
+        assert!(p.is_finite(), "{name} op {op}: covariance {p:?}");
+        assert!(
+            bits(&p) == bits(&p.transpose()),
+            "{name} op {op}: covariance not symmetric"
+        );
+        if factored {
+            let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
+            // Positive finite pivots of a triangular factor are positive definiteness of the
+            // represented P; Potter's pivots are P's diagonal (necessary only). Outside the
+            // moderate range a variance may underflow to zero, and Potter's square factor may
+            // lose a direction to rounding when α = 1 + w·hᵀPh exceeds ~1/u²: P then stays
+            // semidefinite (pivots ≥ 0). The P formed in working precision is not checked by
+            // Cholesky: for κ(P) ≳ 1/(n·u) its rounding alone can make it indefinite.
+            let strict = moderate && name != "potter";
+            assert!(
+                (lo > 0.0 || (!strict && lo == 0.0)) && hi.is_finite(),
+                "{name} op {op}: pivots {lo:e}..{hi:e}, P = {p:?}"
+            );
+            assert!(
+                (0..N).all(|j| p.m[j][j].simd_ge(T::zero())),
+                "{name} op {op}: covariance diagonal negative: {p:?}"
+            );
+        }
+        if let Some(b) = config.bounds
+            && b.p_max.is_finite()
+        {
+            let room =
+                Mat::<T, N, N>::identity().scale(T::from_f64(b.p_max * (1.0 + 10.0 * n_eps))) - p;
+            assert!(
+                room.cholesky().1,
+                "{name} op {op}: P above p_max = {}: {p:?}",
+                b.p_max
+            );
+        }
+    }
+}
