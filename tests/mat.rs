@@ -94,3 +94,35 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    /// `symmetrize` rounds exactly like `(a + b)/2` wherever that does not overflow or reach
+    /// subnormals, and stays finite where it would overflow.
+    #[test]
+    fn symmetrize_is_the_rounded_average(
+        entries in prop::array::uniform9(-1e300f64..1e300),
+        exponent in -100i32..100,
+    ) {
+        let scale = 2f64.powi(exponent);
+        let a = Mat::<f64, 3, 3>::from_fn(|i, j| entries[3 * i + j] * scale * 1e-8);
+        let s = a.symmetrize();
+        for i in 0..3 {
+            for j in 0..3 {
+                let plain = (a.m[i][j] + a.m[j][i]) * 0.5;
+                if plain.is_finite() && plain.abs() > 1e-290 {
+                    prop_assert_eq!(s.m[i][j].to_bits(), plain.to_bits());
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn symmetrize_does_not_overflow_near_the_largest_float() {
+    let big = f64::MAX;
+    let a = Mat::<f64, 2, 2>::from_rows([[big, big], [big * 0.75, big]]);
+    let s = a.symmetrize();
+    assert_eq!(s.m[0][0], big);
+    assert_eq!(s.m[0][1], big * 0.875);
+    assert_eq!(s.m[1][0], s.m[0][1]);
+}

@@ -138,10 +138,20 @@ impl<T: Lane, const N: usize> Mat<T, N, N> {
         t
     }
     /// `(A + Aᵀ) / 2`: removes the asymmetry that rounding leaves in a covariance update.
+    ///
+    /// Computed as `a/2 + b/2` (the diagonal kept as it is), which rounds to the same value as
+    /// `(a + b)/2` but cannot overflow for finite `a`, `b`: a covariance entry near the largest
+    /// float stays finite (found by fuzzing the Bierman time update).
     #[inline]
     pub fn symmetrize(&self) -> Self {
         let half = T::from_f64(0.5);
-        Self::from_fn(|i, j| (self.m[i][j] + self.m[j][i]) * half)
+        Self::from_fn(|i, j| {
+            if i == j {
+                self.m[i][i]
+            } else {
+                self.m[i][j].mul_add(half, self.m[j][i] * half)
+            }
+        })
     }
     /// Symmetric rank-one update `A += alpha · v · vᵀ`.
     #[inline]
