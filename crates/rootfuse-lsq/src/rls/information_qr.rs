@@ -88,6 +88,25 @@ fn two_prod<T: Lane>(a: T, b: T, split: T) -> (T, T) {
     (p, e)
 }
 
+/// Per lane: `P = R⁻¹R⁻ᵀ` can be formed without overflow. `R` finite with positive pivots does
+/// not make `R⁻¹` representable (found by fuzzing: a prior near the largest float, grown by
+/// forgetting). With `M(R)` the comparison matrix (`|r_jj|` on the diagonal, `−|r_jk|` above),
+/// `|R⁻¹| ≤ M(R)⁻¹` entrywise, so `y = M(R)⁻¹·1` (one O(n²) back substitution) bounds every
+/// row sum of `|R⁻¹|` and `|P_ij| ≤ y_i·y_j`; `n·max(y)²` finite is sufficient.
+fn covariance_representable<T: Lane, const N: usize>(r: &Mat<T, N, N>) -> T::Mask {
+    let mut y = [T::zero(); N];
+    let mut y_max = T::zero();
+    for j in (0..N).rev() {
+        let mut acc = T::one();
+        for (r_jk, y_k) in r.m[j][j + 1..].iter().zip(&y[j + 1..]) {
+            acc = r_jk.abs().mul_add(*y_k, acc);
+        }
+        y[j] = acc / r.m[j][j].abs();
+        y_max = y_max.max(y[j]);
+    }
+    (y_max * y_max * T::from_f64(N as f64)).is_finite()
+}
+
 impl<T: Lane, const N: usize> InformationQr<T, N> {
     /// The upper-triangular square-root information matrix `R` (`Rᵀ R = P⁻¹`).
     pub fn factor(&self) -> &Mat<T, N, N> {
@@ -175,6 +194,7 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
         // R and ζ finite do not make x = R⁻¹ζ finite: the back substitution can overflow
         // (found by fuzzing). One O(n²) solve, the same order as the update itself.
         numeric_ok &= r.solve_upper(&zeta).is_finite();
+        numeric_ok &= covariance_representable(&r);
         let state = Self {
             r,
             r_lo,
@@ -208,6 +228,9 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
         // ζ = R x₀ overflows for a huge (finite) x₀ with a small P₀ (found by fuzzing).
         if !(zeta.is_finite() & r.solve_upper(&zeta).is_finite()).all() {
             return Err(RlsError::NonFinitePrior);
+        }
+        if !covariance_representable(&r).all() {
+            return Err(RlsError::NumericalFailure);
         }
         Ok(Self {
             r,
