@@ -21,7 +21,7 @@
 //! the new `U` and `D` without forming `P` (Bierman 1977, ch. VI; Grewal & Andrews,
 //! *Kalman Filtering*, §6.5).
 
-use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, min_max};
+use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, min_max};
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
 /// Bierman U-D RLS with Thornton's time update. See the [module documentation](self).
@@ -46,15 +46,7 @@ impl<T: Lane, const N: usize> BiermanUd<T, N> {
 
     /// `trace(P) = Σ_j d_j Σ_i U_ij²`.
     fn trace_p(&self) -> T {
-        let mut t = T::zero();
-        for j in 0..N {
-            let mut c = T::zero();
-            for i in 0..=j {
-                c = self.u.m[i][j].mul_add(self.u.m[i][j], c);
-            }
-            t = self.d[j].mul_add(c, t);
-        }
-        t
+        trace_ud(&self.u, &self.d)
     }
 
     /// Forgetting plus one whitened measurement (Bierman); (new state, finite, definite).
@@ -86,7 +78,11 @@ impl<T: Lane, const N: usize> BiermanUd<T, N> {
         }
         let ke = (z - h.dot(&self.x)) / alpha;
         let x = Mat::from_fn(|i, _| b[i].mul_add(ke, self.x[i]));
-        let mut finite = x.is_finite() & u.is_finite() & d.is_finite() & alpha.is_finite();
+        let mut finite = x.is_finite()
+            & u.is_finite()
+            & d.is_finite()
+            & alpha.is_finite()
+            & formable::<T, N>(trace_ud(&u, &d));
         for j in 0..N {
             finite &= d[j].simd_gt(T::zero());
         }
@@ -144,7 +140,7 @@ impl<T: Lane, const N: usize> BiermanUd<T, N> {
                 }
             }
         }
-        let mut numeric_ok = u.is_finite() & d.is_finite();
+        let mut numeric_ok = u.is_finite() & d.is_finite() & formable::<T, N>(trace_ud(&u, &d));
         for j in 0..N {
             numeric_ok &= d[j].simd_gt(zero);
         }
@@ -219,4 +215,17 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for BiermanUd<T, N> {
     fn config(&self) -> RlsConfig {
         self.core.config()
     }
+}
+
+/// `trace(U D Uᵀ) = Σ_j d_j Σ_{i≤j} u_ij²`.
+fn trace_ud<T: Lane, const N: usize>(u: &Mat<T, N, N>, d: &Vector<T, N>) -> T {
+    let mut t = T::zero();
+    for j in 0..N {
+        let mut c = T::zero();
+        for i in 0..=j {
+            c = u.m[i][j].mul_add(u.m[i][j], c);
+        }
+        t = d[j].mul_add(c, t);
+    }
+    t
 }

@@ -16,7 +16,8 @@
 //! singular `S`, visible as a zero pivot `S_jj²`.
 
 use super::{
-    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, frobenius2, min_max, outer_self,
+    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
+    outer_self,
 };
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
@@ -66,7 +67,8 @@ impl<T: Lane, const N: usize> InverseQr<T, N> {
         // k = k̄ / √α, and √α = top.
         let ke = (z - h.dot(&self.x)) / top;
         let x = Mat::from_fn(|i, _| col0[i].mul_add(ke, self.x[i]));
-        let finite = x.is_finite() & s.is_finite() & top.is_finite();
+        let finite =
+            x.is_finite() & s.is_finite() & top.is_finite() & formable::<T, N>(frobenius2(&s));
         (Self { x, s, ..*self }, finite, T::Mask::splat(true))
     }
 }

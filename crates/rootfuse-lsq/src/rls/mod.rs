@@ -610,6 +610,15 @@ pub(crate) fn min_max<T: Lane>(n: usize, f: impl Fn(usize) -> T) -> (T, T) {
 }
 
 /// `‖A‖²_F`, the trace of `A Aᵀ`.
+/// Per lane: a covariance with this trace can be formed from its factor without overflow.
+/// `P` is positive semidefinite, so `|P_ij| ≤ max P_ii ≤ trace(P)`, and the partial sums of
+/// `P_ij = Σ_k F_ik F_jk` are bounded by `√(P_ii P_jj)` (Cauchy–Schwarz): `n·trace` finite is
+/// enough. A factor can stay finite while `P` overflows (found by fuzzing: a prior near
+/// `√MAX` grown by forgetting), so the factored forms refuse such updates.
+pub(crate) fn formable<T: Lane, const N: usize>(trace: T) -> T::Mask {
+    (trace * T::from_f64(N as f64)).is_finite()
+}
+
 pub(crate) fn frobenius2<T: Lane, const N: usize>(a: &Mat<T, N, N>) -> T {
     let mut s = T::zero();
     for row in &a.m {

@@ -16,7 +16,8 @@
 //! Health reports the diagonal of `P` (row norms of `S`), since `S` is not triangular.
 
 use super::{
-    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, frobenius2, min_max, outer_self,
+    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
+    outer_self,
 };
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
@@ -65,7 +66,7 @@ impl<T: Lane, const N: usize> Potter<T, N> {
         let inv_sqrt = one / T::select(input_ok, lambda, one).sqrt();
         let x = f0 * self.x;
         let s = (f0 * self.s).scale(inv_sqrt);
-        let finite = x.is_finite() & s.is_finite();
+        let finite = x.is_finite() & s.is_finite() & formable::<T, N>(frobenius2(&s));
         let applied = self.core.count(input_ok, finite);
         self.x = Mat::select(applied, &x, &self.x);
         self.s = Mat::select(applied, &s, &self.s);
@@ -82,7 +83,8 @@ impl<T: Lane, const N: usize> Potter<T, N> {
         let ke = (z - h.dot(&self.x)) / alpha;
         let x = Mat::from_fn(|i, _| g.m[i][0].mul_add(ke, self.x.m[i][0]));
         let s = Mat::from_fn(|i, j| (-gamma * g.m[i][0]).mul_add(f.m[j][0], st.m[i][j]));
-        let finite = x.is_finite() & s.is_finite() & alpha.is_finite();
+        let finite =
+            x.is_finite() & s.is_finite() & alpha.is_finite() & formable::<T, N>(frobenius2(&s));
         (Self { x, s, ..*self }, finite, T::Mask::splat(true))
     }
 }
