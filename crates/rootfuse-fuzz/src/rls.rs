@@ -281,14 +281,18 @@ fn run<T, F, const N: usize>(
             } else {
                 0.0
             };
-            let slack = 1.0 + 10.0 * n_eps + potter_loss;
+            // The bound is kept on the stored factor, so the formed P can exceed it by its
+            // rounding, about n·u·κ(P) relative; the factor's pivot ratio stands in for κ (found:
+            // information QR at κ ≈ 7e8 overshot the plain 10·n·u slack).
+            let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
+            let ratio = if factored { (hi / lo).max(1.0) } else { 1.0 };
+            let slack = 1.0 + 10.0 * n_eps * ratio + potter_loss;
             let limit = T::from_f64(b.p_max * slack);
             let room = Mat::<T, N, N>::identity().scale(limit) - p;
             // A slack beyond the lane type's range leaves nothing to check; nor does a factored
             // form's P formed at a pivot ratio beyond 1/(n·u), whose rounding can exceed any
             // bound (ROBUSTNESS.md; found: information QR with h entries of 1e50, pivot ratio
             // 1e99, formed P_11 = 1e19 where the exact value is below p_max).
-            let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
             let well_conditioned = !factored || hi <= lo / n_eps;
             let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned;
             assert!(

@@ -90,8 +90,9 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// # Guarantee
 /// With bounds configured and a prior inside them, after every update every eigenvalue of
 /// `P` is `≤ p_max`, and `trace(P⁻¹) ≤ 1/p_min`, hence every eigenvalue is `≥ p_min`
-/// (exactly in exact arithmetic; in floating point up to the rounding of the stored factor, a
-/// relative slack of a few units of roundoff times `n`). Requires `n·p_min < p_max`.
+/// (exactly in exact arithmetic; in floating point up to the rounding of the stored factor: a
+/// relative slack of about `n·u·κ(P)` on the covariance formed from it, which is a few units
+/// of roundoff times `n` for a well-conditioned `P`). Requires `n·p_min < p_max`.
 ///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
