@@ -160,8 +160,8 @@ fn run<T, F, const N: usize>(
         *moderate &= a == 0.0 || (1e-3..=1e3).contains(&a);
     };
     // Potter's square factor loses about u·√α of relative accuracy in one update with
-    // α = 1 + w·hᵀ(P/λ)h (ROBUSTNESS.md); with bounds the pseudo-measurements have
-    // α ≤ 1 + 1/λ. The largest α seen widens Potter's p_max tolerance accordingly.
+    // α = 1 + w·hᵀ(P/λ)h, the covariance forms u·α (ROBUSTNESS.md); with bounds the
+    // pseudo-measurements have α ≤ 1 + 1/λ. The largest α seen widens their p_max tolerance.
     let p_scale = config
         .bounds
         .map_or(Into::<f64>::into(p0), |b| b.p_max.min(1e300));
@@ -276,10 +276,13 @@ fn run<T, F, const N: usize>(
         if let Some(b) = config.bounds
             && b.p_max.is_finite()
         {
-            let potter_loss = if name == "potter" {
-                4.0 * T::EPSILON * alpha_max.sqrt()
-            } else {
-                0.0
+            // The covariance forms subtract P·h·hᵀ·P/α from P itself: one update with a large α
+            // loses about u·α of P's relative accuracy (found: λ = 1e-30 left P at 1.2e24 with
+            // p_max = 1e10); Potter's square factor loses u·√α.
+            let potter_loss = match name {
+                "potter" => 4.0 * T::EPSILON * alpha_max.sqrt(),
+                "conventional" | "joseph" => 4.0 * T::EPSILON * alpha_max,
+                _ => 0.0,
             };
             // The bound is kept on the stored factor, so the formed P can exceed it by its
             // rounding, about n·u·κ(P) relative; the factor's pivot ratio stands in for κ (found:
