@@ -14,16 +14,19 @@ const MAX_STEPS: usize = 400;
 pub(crate) fn spec_from(input: &mut Bytes) -> FilterSpec {
     let kind = FilterKind::ALL[usize::from(input.u8()) % FilterKind::ALL.len()];
     let flags = input.u8();
-    let mut spec = FilterSpec::new(kind.name()).expect("a registered name");
+    // Unreachable: the name comes from the registry itself, and 6 and 9 are the two values
+    // every `dof` parameter accepts.
+    let mut spec = FilterSpec::new(kind.name()).expect("unreachable: a registered name");
     spec.set_dof(if flags & 2 != 0 { 9 } else { 6 })
-        .expect("6 and 9 are valid dimensions");
+        .expect("unreachable: 6 and 9 are valid dimensions");
     let which = input.u8();
     let end = input.u8();
     let params = kind.params();
     if flags & 4 != 0 && !params.is_empty() {
         let p = params[usize::from(which) % params.len()];
         let value = if end & 1 == 0 { p.min } else { p.max };
-        // The ends are inclusive, so the override must be accepted.
+        // The ends are inclusive, so the override must be accepted; a rejection is an
+        // invariant failure, reported by panicking as every check of this harness is.
         spec.set(&format!("{}={value:?}", p.name))
             .unwrap_or_else(|e| panic!("{}: end of range rejected: {e}", kind.name()));
     }

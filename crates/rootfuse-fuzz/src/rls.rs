@@ -144,6 +144,7 @@ fn run<T, F, const N: usize>(
             let p: f64 = p0.into();
             let x0_moderate = x0.m.iter().all(|r| Into::<f64>::into(r[0]).abs() <= 1e20);
             if config_ok && config.bounds.is_none() && x0_moderate && (1e-6..=1e8).contains(&p) {
+                // An invariant failure, reported by panicking as every check of this harness is.
                 panic!("{name}: valid prior {p} rejected: {e:?}");
             }
             return;

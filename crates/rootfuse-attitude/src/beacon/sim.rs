@@ -12,6 +12,14 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use std::vec::Vec;
 
+/// A zero-mean normal distribution of standard deviation `sd`; a negative or non-finite `sd`
+/// (a bad configuration) gives the unit normal.
+fn gaussian(sd: f64) -> Normal<f64> {
+    let sd = if sd.is_finite() && sd >= 0.0 { sd } else { 1.0 };
+    // Unreachable: `Normal::new` fails only for a negative or non-finite standard deviation.
+    Normal::new(0.0, sd).expect("unreachable: sd is finite and non-negative")
+}
+
 /// Settings of the simulated walk.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WalkConfig {
@@ -189,8 +197,8 @@ pub fn scan<R: Rng>(
     if rng.random::<f64>() < cfg.scan_gap {
         return out;
     }
-    let shadow = Normal::new(0.0, cfg.shadowing_db).unwrap_or(Normal::new(0.0, 1.0).unwrap());
-    let fade = Normal::new(0.0, cfg.fading_db).unwrap_or(Normal::new(0.0, 1.0).unwrap());
+    let shadow = gaussian(cfg.shadowing_db);
+    let fade = gaussian(cfg.fading_db);
     for b in beacons.iter() {
         let d = (p[0] - b.position[0]).hypot(p[1] - b.position[1]).max(0.3);
         let mean = b.tx_power - 10.0 * cfg.path_loss_n * d.log10() + shadow.sample(rng);
@@ -304,7 +312,8 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
         }
     };
 
-    let normal = |s: f64| Normal::new(0.0, s.max(0.0)).unwrap_or(Normal::new(0.0, 1.0).unwrap());
+    // `max` maps NaN to 0 as well: a missing noise setting means no noise.
+    let normal = |s: f64| gaussian(s.max(0.0));
     let nb = normal(cfg.gyro_bias_std);
     let bias = Vec3::new(
         nb.sample(&mut rng),

@@ -50,8 +50,9 @@ impl<T: Lane, const N: usize> PolyDenoiser<T, N> {
         let prior =
             Potter::with_isotropic_prior(&Vector::zeros(), T::from_f64(1e4), RlsConfig::new(1.0));
         Self {
-            // A constant prior and configuration: construction cannot fail.
-            rls: prior.expect("constant, valid prior"),
+            // Unreachable: construction fails only for λ ∉ (0, 1], invalid bounds, a
+            // non-finite x₀ or P₀ not PD; here λ = 1, no bounds, x₀ = 0, P₀ = 1e4·I.
+            rls: prior.expect("unreachable: constant, valid prior"),
             inv_tau: T::from_f64(1.0 / tau),
             weight: T::from_f64(1.0 / (noise * noise)),
         }

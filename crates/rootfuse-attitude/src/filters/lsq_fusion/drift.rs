@@ -180,8 +180,11 @@ impl<T: Lane> DriftEstimator<T> {
             RlsConfig::new(lambda).with_bounds(0.0, p_max),
         );
         Self {
-            // λ ∈ (0, 1) and 0 < p_max with P₀ = p_max·I on the bound: always valid.
-            rls: rls.expect("clamped configuration is valid"),
+            // Unreachable: construction fails only for λ ∉ (0, 1], bounds not 0 ≤ n·p_min <
+            // p_max, a non-finite x₀ or P₀ not PD / outside the bounds. Here λ ∈ [5e-8, 1)
+            // (memory ≥ 1e-3, block ≤ 1e4), p_min = 0 < p_max ≥ 1e-12 (normal in f32 too),
+            // x₀ = 0 and P₀ = p_max·I, which the bound check admits with its n·u slack.
+            rls: rls.expect("unreachable: the clamped drift configuration is valid"),
             bias: Vec3::zero(),
             q_w: Quat::identity(),
             a: Mat::zeros(),

@@ -164,8 +164,10 @@ impl<T: Lane> LsqFusion<T> {
                 noise: p.drift_noise,
                 scale: p.gyr_scale,
             }),
-            // A constant prior and configuration: construction cannot fail.
-            fusion: fusion.expect("constant, valid prior"),
+            // Unreachable: construction fails only for λ ∉ (0, 1], invalid bounds, a
+            // non-finite x₀ or P₀ not PD; here λ = 1, no bounds, x₀ = [1, 0, 0, 0],
+            // P₀ = FUSION_PRIOR·I = I.
+            fusion: fusion.expect("unreachable: constant, valid prior"),
             q: Quat::identity(),
             inv_fusion_tau: T::from_f64(1.0 / positive(p.fusion_tau, 3.0)),
             acc_weight: T::from_f64(1.0 / (acc_noise * acc_noise)),
