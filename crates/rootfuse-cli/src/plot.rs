@@ -21,6 +21,22 @@ fn fonts() -> Result<(), String> {
 
 const SIZE: (u32, u32) = (900, 480);
 
+/// The frame every plot shares: white background left to the caller, title, margins and the
+/// x axis label area; `y_label_area` (pixels) depends on the width of the y tick labels.
+fn titled<'a, 'b, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    y_label_area: u32,
+) -> ChartBuilder<'a, 'b, DB> {
+    let mut builder = ChartBuilder::on(root);
+    builder
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(y_label_area);
+    builder
+}
+
 type Drawn = Result<(), Box<dyn std::error::Error>>;
 
 fn palette(i: usize) -> RGBColor {
@@ -90,12 +106,7 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(52)
-        .build_cartesian_2d(0.0..t_max, 0.0..y_max)?;
+    let mut chart = titled(&root, title, 52).build_cartesian_2d(0.0..t_max, 0.0..y_max)?;
     chart
         .configure_mesh()
         .x_desc("time (s)")
@@ -167,11 +178,7 @@ where
     // Each scenario is a group of one bar per filter plus a gap.
     let width = rows.len().max(1) as f64 + 1.0;
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("mean total RMSE per scenario (9D)", ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(52)
+    let mut chart = titled(&root, "mean total RMSE per scenario (9D)", 52)
         .build_cartesian_2d(0.0..(groups as f64 * width), 0.0..y_max)?;
     chart
         .configure_mesh()
@@ -261,12 +268,8 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(64)
-        .build_cartesian_2d(0.0..x_max, (y_min..y_max).log_scale())?;
+    let mut chart =
+        titled(&root, title, 64).build_cartesian_2d(0.0..x_max, (y_min..y_max).log_scale())?;
     chart
         .configure_mesh()
         .x_desc("step")
