@@ -52,15 +52,15 @@ fn rmse64(rec: &Recording, dof: f64) -> (f64, f64) {
 fn simulated_scenarios_within_bounds() {
     // (scenario, 9D total, 6D total, inclination)
     let cases = [
-        ("slow-rotation", 2.0, 2.0, 1.0),
+        ("slow-rotation", 1.2, 0.7, 0.6),
         // Known limitation: a 0.02 rad/s bias step (10× the BROAD bias) is tracked only at the
-        // bias random-walk rate (no step detection yet); the bound records today's behaviour.
-        ("bias-step", 12.0, 12.0, 5.0),
-        ("long-rest", 2.0, 2.0, 1.0),
-        ("magnetic-disturbance", 4.0, 3.0, 1.5),
-        ("translation", 3.0, 3.0, 2.0),
-        ("irregular-dt", 2.0, 2.0, 1.0),
-        ("vibration", 3.0, 6.0, 2.0),
+        // bias random-walk rate and through the inclination (no step detection yet).
+        ("bias-step", 7.0, 5.0, 4.0),
+        ("long-rest", 1.1, 0.8, 0.7),
+        ("magnetic-disturbance", 1.1, 0.7, 0.6),
+        ("translation", 2.0, 1.6, 1.6),
+        ("irregular-dt", 1.2, 0.7, 0.6),
+        ("vibration", 3.3, 5.3, 0.9),
     ];
     let mut failures = Vec::new();
     for (name, b9, b6, bi) in cases {
@@ -119,22 +119,52 @@ fn rest_is_detected_and_bias_learned() {
     assert!(err < 2e-3, "bias error {err:e} rad/s");
 }
 
-/// f32 follows f64 closely on a long simulated run (max angle between the estimates).
+/// f32 follows f64 closely on a long simulated run (angle between the estimates).
+///
+/// The rest timer sums `dt` in the filter's precision, so f32 may declare rest one sample
+/// after f64; the first rest update moves bias and (through their correlation) attitude by
+/// a few tenths of a degree at once, and the two runs then differ for a few samples until
+/// f32 makes the same update. So: 99.5 % of samples within 0.01°, every sample within 0.5°,
+/// and the rest flags equal on all but 0.1 % of the samples.
 #[test]
 fn f32_agrees_with_f64() {
     let rec = scenario("slow-rotation", 4, 120.0, 100.0).unwrap();
     for dof in [6.0, 9.0] {
-        let (a, _) = run::<f64>(&rec, dof, |x| x, |x| x);
-        let (b, f) = run::<f32>(&rec, dof, |x| x as f32, |x| x as f64);
-        let worst = a
+        let (a, fa) = run::<f64>(&rec, dof, |x| x, |x| x);
+        let (b, fb) = run::<f32>(&rec, dof, |x| x as f32, |x| x as f64);
+        let mut diff: Vec<f64> = a
             .iter()
             .zip(&b)
-            .map(|(x, y)| x.angle_to(*y))
-            .fold(0.0f64, f64::max)
-            .to_degrees();
-        assert!(worst < 0.1, "{dof}D: f32 vs f64 up to {worst:.4}°");
-        assert!(f.covariance().is_finite().all());
+            .map(|(x, y)| x.angle_to(*y).to_degrees())
+            .collect();
+        diff.sort_by(f64::total_cmp);
+        let p995 = diff[diff.len() * 995 / 1000];
+        let worst = diff[diff.len() - 1];
+        assert!(
+            p995 < 0.01 && worst < 0.5,
+            "{dof}D: f32 vs f64 99.5 % {p995:.4}°, max {worst:.4}°"
+        );
+        assert!(fb.covariance().is_finite().all());
+        assert_eq!(fa.at_rest(), fb.at_rest(), "{dof}D: rest flags at the end");
     }
+    // Rest flags sample by sample.
+    let p = params(6.0);
+    let (mut fa, mut fb) = (SqrtEskf::<f64>::new(&p), SqrtEskf::<f32>::new(&p));
+    let mut differ = 0usize;
+    for i in 0..rec.len() {
+        let s = rec.sample(i);
+        fa.update(&s, rec.dt(i));
+        let v = |x: Vec3<f64>| Vec3::new(x.x as f32, x.y as f32, x.z as f32);
+        fb.update(
+            &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
+            rec.dt(i) as f32,
+        );
+        differ += usize::from(fa.at_rest() != fb.at_rest());
+    }
+    assert!(
+        differ * 1000 <= rec.len(),
+        "rest flags differ on {differ} samples"
+    );
 }
 
 #[test]

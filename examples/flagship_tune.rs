@@ -1,0 +1,157 @@
+//! Tuning record of the flagship `sqrt-eskf` on the four BROAD trials: runs the filter once per
+//! trial in 9D (its 6D estimate is the same state without the magnetic heading offset, see
+//! `SqrtEskf::quat6`) and prints total RMSE per trial next to VQF online, and the worst ratio
+//! ours / VQF over the eight cells (the objective: < 1 means better than VQF everywhere).
+//!
+//! ```sh
+//! cargo run --release --example flagship_tune                      # defaults
+//! cargo run --release --example flagship_tune -- tau_acc=2.5 rest_noise=0.001
+//! cargo run --release --example flagship_tune -- --f32             # single precision
+//! cargo run --release --example flagship_tune -- --grid acc_noise=0.01,0.015,0.02
+//! ```
+//! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
+use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::io::read_csv;
+use rootfuse::attitude::metrics::{Alignment, evaluate};
+use rootfuse::attitude::{ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
+use std::path::PathBuf;
+
+/// VQF online total RMSE (degrees) on the four trials, 9D then 6D (../shared/broad_csv/README.md).
+const VQF_9D: [f64; 4] = [1.38, 1.75, 0.74, 2.38];
+const VQF_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
+/// VQF online inclination RMSE (degrees; the same in 6D and 9D).
+const VQF_INCL: [f64; 4] = [0.43, 1.02, 0.54, 1.06];
+
+fn run<T: rootfuse::Lane>(
+    p: &SqrtEskfParams,
+    rec: &Recording,
+    conv: impl Fn(f64) -> T,
+    back: impl Fn(T) -> f64,
+) -> (Vec<Quat<f64>>, Vec<Quat<f64>>) {
+    let mut f = SqrtEskf::<T>::new(p);
+    let v = |x: Vec3<f64>| Vec3::new(conv(x.x), conv(x.y), conv(x.z));
+    let q64 = |q: Quat<T>| Quat::new(back(q.w), back(q.x), back(q.y), back(q.z));
+    let mut q9 = Vec::with_capacity(rec.len());
+    let mut q6 = Vec::with_capacity(rec.len());
+    let trace = std::env::var_os("TRACE").is_some();
+    for i in 0..rec.len() {
+        let s = rec.sample(i);
+        f.update(
+            &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
+            conv(rec.dt(i)),
+        );
+        if trace && i % 2857 == 0 {
+            let b = f.bias();
+            let d = |x: T| back(x).to_degrees();
+            println!(
+                "{} t={:6.1} bias {:+.3} {:+.3} {:+.3} deg/s rest={}",
+                rec.name,
+                i as f64 * rec.dt(i.max(1)),
+                d(b.x),
+                d(b.y),
+                d(b.z),
+                f.at_rest().any()
+            );
+        }
+        q9.push(q64(f.quat9()));
+        q6.push(q64(f.quat6()));
+    }
+    (q9, q6)
+}
+
+/// Total RMSE (degrees) 9D and 6D, and inclination RMSE, per trial.
+fn score(p: &SqrtEskfParams, recs: &[Recording], f32: bool) -> Vec<[f64; 3]> {
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = recs
+            .iter()
+            .map(|rec| {
+                scope.spawn(move || {
+                    let (q9, q6) = if f32 {
+                        run::<f32>(p, rec, |x| x as f32, f64::from)
+                    } else {
+                        run::<f64>(p, rec, |x| x, |x| x)
+                    };
+                    let (e9, incl) = evaluate(rec, &q9, Alignment::NineD)
+                        .map_or((f64::NAN, f64::NAN), |r| (r.total, r.inclination));
+                    let e6 = evaluate(rec, &q6, Alignment::SixD).map_or(f64::NAN, |r| r.total);
+                    [e9, e6, incl]
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or([f64::NAN; 3]))
+            .collect()
+    })
+}
+
+fn print_row(label: &str, s: &[[f64; 3]]) {
+    let cells = |d: usize| s.iter().map(|x| format!("{:.3}", x[d])).collect::<Vec<_>>();
+    let mean = |d: usize| s.iter().map(|x| x[d]).sum::<f64>() / s.len() as f64;
+    let worst = s
+        .iter()
+        .enumerate()
+        .map(|(i, x)| (x[0] / VQF_9D[i]).max(x[1] / VQF_6D[i]))
+        .fold(0.0, f64::max)
+        .max(mean(0) / (VQF_9D.iter().sum::<f64>() / 4.0))
+        .max(mean(1) / (VQF_6D.iter().sum::<f64>() / 4.0));
+    let worst_incl = s
+        .iter()
+        .enumerate()
+        .map(|(i, x)| x[2] / VQF_INCL[i])
+        .fold(0.0, f64::max);
+    println!(
+        "{label}: 9D {} mean {:.3} | 6D {} mean {:.3} | incl {} | worst ratio {:.4} incl {:.4}",
+        cells(0).join(" "),
+        mean(0),
+        cells(1).join(" "),
+        mean(1),
+        cells(2).join(" "),
+        worst,
+        worst_incl
+    );
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let dir = std::env::var_os("ROOTFUSE_BROAD_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/broad_csv"));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "csv") && !p.ends_with("index.csv"))
+        .collect();
+    files.sort();
+    let recs: Vec<Recording> = files.iter().map(read_csv).collect::<Result<_, _>>()?;
+
+    let mut p = SqrtEskfParams::default();
+    let mut f32 = false;
+    let mut grid: Option<(String, Vec<f64>)> = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if a == "--f32" {
+            f32 = true;
+        } else if a == "--grid" {
+            let g = args.next().ok_or("--grid needs name=v1,v2,...")?;
+            let (name, values) = g.split_once('=').ok_or("--grid needs name=v1,v2,...")?;
+            let values = values
+                .split(',')
+                .map(str::parse)
+                .collect::<Result<Vec<f64>, _>>()?;
+            grid = Some((name.to_string(), values));
+        } else {
+            p.apply(&a)?;
+        }
+    }
+    println!("VQF      : 9D {VQF_9D:?} | 6D {VQF_6D:?}");
+    match grid {
+        None => print_row("ours", &score(&p, &recs, f32)),
+        Some((name, values)) => {
+            for v in values {
+                let mut q = p.clone();
+                q.set(&name, v)?;
+                print_row(&format!("{name}={v}"), &score(&q, &recs, f32));
+            }
+        }
+    }
+    Ok(())
+}
