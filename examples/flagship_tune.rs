@@ -8,6 +8,7 @@
 //! cargo run --release --example flagship_tune -- tau_acc=2.5 rest_noise=0.001
 //! cargo run --release --example flagship_tune -- --f32             # single precision
 //! cargo run --release --example flagship_tune -- --grid acc_noise=0.01,0.015,0.02
+//! TRACE=1 cargo run --release --example flagship_tune       # bias every 10 s per trial
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
 use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
