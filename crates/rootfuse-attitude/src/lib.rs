@@ -39,6 +39,8 @@ pub mod registry;
 pub mod sample;
 #[cfg(feature = "std")]
 pub mod sim;
+#[cfg(feature = "std")]
+pub mod smooth;
 pub mod vec3;
 
 pub use filters::OrientationFilter;

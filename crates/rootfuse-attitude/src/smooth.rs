@@ -1,0 +1,174 @@
+//! Offline forward-backward smoothing of a whole recording (the two-filter smoother).
+//!
+//! A filter runs forward in time and a second instance runs backward (samples in reverse
+//! order, gyroscope negated); at every sample the two attitude estimates are fused with
+//! their attitude-error covariances (Fraser & Potter 1969, "The optimum linear smoother as a
+//! combination of two optimum linear filters", IEEE Trans. Automatic Control 14(4)), in the
+//! global error convention of [`OrientationFilter::attitude_covariance`]:
+//! `δ = Log(q_b ⊗ q_f*)`, `q_s = Exp(P_f·(P_f + P_b)⁻¹·δ) ⊗ q_f`. Each estimate sees the
+//! data on one side of the sample, so the fusion uses all of it: the start-up transient
+//! of the forward filter and the lag of its accelerometer low-pass are covered by the
+//! backward one, and vice versa. The two estimates share the sample itself; counting it twice
+//! is the usual, small approximation of the two-filter form.
+//!
+//! The estimates must share their earth frame: a 9D filter (magnetic north) does; a 6D
+//! filter's heading is arbitrary per run, so for 6D the backward estimate is first turned
+//! about earth-z by the circular mean of its heading difference to the forward estimate
+//! (weights: inverse heading variances), which is the constant offset two 6D runs differ by.
+//!
+//! ```
+//! use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+//! use rootfuse_attitude::sim::scenario;
+//! use rootfuse_attitude::smooth::forward_backward;
+//!
+//! let rec = scenario("slow-rotation", 1, 20.0, 100.0).unwrap();
+//! let p = SqrtEskfParams::default();
+//! let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), true).unwrap();
+//! assert_eq!(out.quat.len(), rec.len());
+//! assert_eq!(out.forward_only, 0);
+//! ```
+
+use crate::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_lane::Mat;
+use std::vec::Vec;
+
+/// The smoothed estimates of a recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Smoothed {
+    /// Smoothed orientation per sample (sensor to earth, same convention as the filter).
+    pub quat: Vec<Quat<f64>>,
+    /// Samples where the fusion was not possible (a covariance not finite or not positive
+    /// definite, or an estimate not finite) and the forward estimate was kept as it is.
+    pub forward_only: usize,
+}
+
+/// Why a recording could not be smoothed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SmoothError {
+    /// The filter does not report an attitude covariance, so the two passes cannot be
+    /// weighted ([`OrientationFilter::attitude_covariance`] returned `None`).
+    #[error("the filter reports no attitude covariance, which the smoother needs as weights")]
+    NoCovariance,
+}
+
+/// One pass: estimate and attitude covariance after each sample.
+type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
+
+/// Runs `build()` forward and a second `build()` backward over `rec` and fuses them (see
+/// the module documentation). `nine_d` says the filter's heading is absolute (magnetometer in
+/// use); otherwise the backward pass is first aligned to the forward one in heading.
+///
+/// # Errors
+/// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
+pub fn forward_backward<F: OrientationFilter<f64>>(
+    rec: &Recording,
+    mut build: impl FnMut() -> F,
+    nine_d: bool,
+) -> Result<Smoothed, SmoothError> {
+    let n = rec.len();
+    let mut fwd_filter = build();
+    if n > 0 && fwd_filter.attitude_covariance().is_none() {
+        return Err(SmoothError::NoCovariance);
+    }
+    let forward: Pass = (0..n)
+        .map(|i| {
+            fwd_filter.update(&rec.sample(i), rec.dt(i));
+            (fwd_filter.quat(), fwd_filter.attitude_covariance())
+        })
+        .collect();
+    // Backward in time: arriving at sample i from sample i + 1 uses the rate measured over
+    // [t_i, t_{i+1}] (sample i + 1's gyroscope), negated, over that interval, and then
+    // corrects with sample i's accelerometer and magnetometer.
+    let mut bwd_filter = build();
+    let mut backward: Pass = (0..n)
+        .rev()
+        .map(|i| {
+            let (gyr_from, dt) = if i + 1 < n {
+                (i + 1, rec.dt(i + 1))
+            } else {
+                (i, rec.dt(i))
+            };
+            let s = rec.sample(i);
+            let gyr = rec.sample(gyr_from).gyr;
+            let sample = ImuSample::new(-gyr, s.acc, s.mag);
+            bwd_filter.update(&sample, dt);
+            (bwd_filter.quat(), bwd_filter.attitude_covariance())
+        })
+        .collect();
+    backward.reverse();
+    if !nine_d {
+        let offset = heading_offset(&forward, &backward);
+        let turn = Quat::from_heading(offset);
+        for (q, p) in &mut backward {
+            *q = (turn * *q).normalize();
+            // A turn about earth-z rotates the earth-frame covariance with it.
+            if let Some(p) = p {
+                let r = turn.to_rotation_matrix();
+                *p = r * *p * r.transpose();
+            }
+        }
+    }
+    let mut forward_only = 0;
+    let quat = forward
+        .iter()
+        .zip(&backward)
+        .map(|(&(qf, pf), &(qb, pb))| match fuse(qf, pf, qb, pb) {
+            Some(q) => q,
+            None => {
+                forward_only += 1;
+                qf
+            }
+        })
+        .collect();
+    Ok(Smoothed { quat, forward_only })
+}
+
+/// `Exp(P_f·(P_f + P_b)⁻¹·δ) ⊗ q_f` with `δ = Log(q_b ⊗ q_f*)`; `None` where it cannot be
+/// formed (non-finite input, `P_f + P_b` not positive definite).
+fn fuse(
+    qf: Quat<f64>,
+    pf: Option<Mat<f64, 3, 3>>,
+    qb: Quat<f64>,
+    pb: Option<Mat<f64, 3, 3>>,
+) -> Option<Quat<f64>> {
+    let (pf, pb) = (pf?, pb?);
+    if !(qf.is_finite() && qb.is_finite() && pf.is_finite() && pb.is_finite()) {
+        return None;
+    }
+    let delta = (qb * qf.conj()).to_rotation_vector();
+    let sum = Mat::from_fn(|i, j| pf.m[i][j] + pb.m[i][j]);
+    let (l, ok) = sum.cholesky();
+    if !ok {
+        return None;
+    }
+    let x = l.cholesky_solve(&Mat::from_column(delta.to_array()));
+    let k_delta = pf * x;
+    let step = Vec3::new(k_delta.m[0][0], k_delta.m[1][0], k_delta.m[2][0]);
+    let q = (Quat::from_rotation_vector(step) * qf).normalize();
+    q.is_finite().then_some(q)
+}
+
+/// Circular mean of the heading of `q_f ⊗ q_b*` over the samples, weighted by the inverse of
+/// the summed heading variances (rad): the heading turn that brings the backward 6D
+/// estimates into the forward one's frame.
+fn heading_offset(forward: &Pass, backward: &Pass) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for ((qf, pf), (qb, pb)) in forward.iter().zip(backward) {
+        let var = match (pf, pb) {
+            (Some(a), Some(b)) => a.m[2][2] + b.m[2][2],
+            _ => continue,
+        };
+        let e = *qf * qb.conj();
+        let psi = 2.0 * e.z.atan2(e.w);
+        let w = 1.0 / var;
+        if psi.is_finite() && w.is_finite() && w > 0.0 {
+            s += w * psi.sin();
+            c += w * psi.cos();
+        }
+    }
+    if s == 0.0 && c == 0.0 {
+        0.0
+    } else {
+        s.atan2(c)
+    }
+}
