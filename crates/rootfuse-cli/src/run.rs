@@ -5,8 +5,9 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rootfuse_attitude::io::{list_dir, read_csv, write_estimates};
 use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_attitude::smooth::forward_backward;
 use rootfuse_attitude::{OrientationFilter, Recording};
-use rootfuse_batch::ChannelOutput;
+use rootfuse_batch::{ChannelOutput, RejectionTotals};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -43,6 +44,11 @@ pub struct RunArgs {
     /// 16 (a correction gated).
     #[arg(long)]
     flags: bool,
+    /// Offline: smooth each file forward-backward (two runs fused by their attitude
+    /// covariances, `rootfuse_attitude::smooth`), in f64; for filters that carry a covariance.
+    /// Not combined with `--bias`, `--covariance` or `--flags`.
+    #[arg(long)]
+    offline: bool,
     /// Skip unreadable files (reported) instead of stopping; exit code 1 if any failed.
     #[arg(long)]
     keep_going: bool,
@@ -63,6 +69,19 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             "--covariance: filter `{}` carries no covariance (sqrt-eskf and ekf do)",
             args.filter
         ));
+    }
+    if args.offline {
+        if args.bias || args.covariance || args.flags {
+            return Err(
+                "--offline writes orientations only (no --bias, --covariance, --flags)".into(),
+            );
+        }
+        if spec.build::<f64>().attitude_covariance().is_none() {
+            return Err(format!(
+                "--offline: filter `{}` carries no covariance to weight the two passes (sqrt-eskf and ekf do)",
+                args.filter
+            ));
+        }
     }
     let mut files = Vec::new();
     for input in &args.inputs {
@@ -107,7 +126,11 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         covariance: args.covariance,
         flags: args.flags,
     };
-    let outputs = run_recordings_with(&spec, &recs, args.precision.into(), columns);
+    let outputs = if args.offline {
+        smooth_recordings(&spec, &recs)?
+    } else {
+        run_recordings_with(&spec, &recs, args.precision.into(), columns)
+    };
     let seconds = start.elapsed().as_secs_f64();
     spinner.finish_and_clear();
 
@@ -130,10 +153,14 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         samples += rec.len();
     }
     out!(
-        "{} file(s), {samples} samples, {:.3e} samples/s ({:?}), estimates in {}",
+        "{} file(s), {samples} samples, {:.3e} samples/s ({}), estimates in {}",
         recs.len(),
         samples as f64 / seconds.max(1e-9),
-        args.precision,
+        if args.offline {
+            "f64, offline".to_string()
+        } else {
+            format!("{:?}", args.precision)
+        },
         args.out.display()
     );
     out!(
@@ -150,6 +177,34 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     } else {
         Ok(Outcome::Success)
     }
+}
+
+/// Forward-backward smoothing of every recording (f64). The rejection counts are those of
+/// the forward pass (the backward pass sees the same samples).
+fn smooth_recordings(spec: &FilterSpec, recs: &[Recording]) -> Result<Vec<ChannelOutput>, String> {
+    let nine_d = spec.get("dof").is_none_or(|d| d > 7.5);
+    recs.iter()
+        .map(|rec| {
+            let smoothed = forward_backward(rec, || spec.build::<f64>(), nine_d)
+                .map_err(|e| format!("{}: {e}", rec.name))?;
+            let mut forward = spec.build::<f64>();
+            for i in 0..rec.len() {
+                forward.update(&rec.sample(i), rec.dt(i));
+            }
+            let r = forward.rejections();
+            Ok(ChannelOutput {
+                quat: smoothed.quat,
+                rejections: RejectionTotals {
+                    dt: r.dt.as_ref()[0],
+                    gyr: r.gyr.as_ref()[0],
+                    acc: r.acc.as_ref()[0],
+                    mag: r.mag.as_ref()[0],
+                    gated: r.gated.as_ref()[0],
+                },
+                ..ChannelOutput::default()
+            })
+        })
+        .collect()
 }
 
 /// The optional output columns that were collected, by name, in file order.

@@ -311,3 +311,56 @@ fn run_writes_optional_columns() {
     assert!(stderr.contains("carries no covariance"), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
 }
+
+/// `run --offline` smooths forward-backward: more accurate than the online run on the same
+/// simulated file; refused for filters without a covariance and with extra columns.
+#[test]
+fn run_offline_smooths() {
+    let dir = temp_dir("offline");
+    let rec = scenario("translation", 4, 30.0, 100.0).unwrap();
+    let input = dir.join("sim.csv");
+    write_recording(&input, &rec).unwrap();
+    let input_s = input.display().to_string();
+    let mut err = Vec::new();
+    for (sub, extra) in [("online", None), ("offline", Some("--offline"))] {
+        let out_s = dir.join(sub).display().to_string();
+        let mut args = vec!["run", &input_s, "--out", &out_s, "--filter", "flagship"];
+        args.extend(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", text(&o).1);
+        let est = read_estimates(dir.join(sub).join("sim.csv")).unwrap();
+        assert_eq!(est.quat.len(), rec.len());
+        err.push(evaluate(&rec, &est.quat, Alignment::NineD).unwrap().total);
+    }
+    assert!(
+        err[1] < err[0],
+        "offline {:.3}° vs online {:.3}°",
+        err[1],
+        err[0]
+    );
+    let out_s = dir.join("x").display().to_string();
+    for args in [
+        vec![
+            "run",
+            &input_s,
+            "--out",
+            &out_s,
+            "--filter",
+            "mahony",
+            "--offline",
+        ],
+        vec![
+            "run",
+            &input_s,
+            "--out",
+            &out_s,
+            "--filter",
+            "flagship",
+            "--offline",
+            "--bias",
+        ],
+    ] {
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+    }
+}
