@@ -109,7 +109,11 @@
 //! ratio ours/VQF over the eight totals and two means, 0.990); the other BROAD trials were
 //! not used and are the real test. A gyro-bias step (simulated, 0.02 rad/s) is tracked only
 //! at the bias random-walk rate: step detection (innovation-consistency monitoring) is not
-//! there yet, nor is an offline smoother.
+//! there yet.
+//!
+//! Offline, [`crate::smooth::forward_backward`] fuses a forward and a backward run by their
+//! attitude covariances: 9D 0.76 / 1.39 / 0.57 / 1.63 (mean 1.09) against VQF offline's
+//! 1.01 / 1.71 / 0.58 / 1.81 (mean 1.28).
 //!
 //! # Lanes
 //!
