@@ -87,7 +87,7 @@ pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
     run_sources_with,
 };
-pub use throughput::{ModeResult, ThroughputReport, throughput};
+pub use throughput::{ModeResult, ROUNDS, ThroughputReport, throughput};
 
 /// State bytes per channel of a batch over lanes `L`: `size_of::<AnyFilter<L>>() / LANES`
 /// (the chunk's masking bookkeeping adds `size_of::<L::Counts>() / LANES + 2 × 8` bytes of

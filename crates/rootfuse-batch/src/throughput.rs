@@ -3,6 +3,7 @@
 use rayon::prelude::*;
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
+use rootfuse_lane::X2;
 use rootfuse_lane::wide::{f32x8, f64x4};
 use std::hint::black_box;
 use std::string::String;
@@ -14,6 +15,8 @@ use std::time::Instant;
 const POOL_CHANNELS: usize = 512;
 /// Distinct steps per synthetic channel; step `k` replays step `k % POOL_STEPS`.
 const POOL_STEPS: usize = 64;
+/// Timed runs per mode; the fastest counts (see [`throughput`]).
+pub const ROUNDS: usize = 3;
 
 /// One measured mode.
 #[derive(Clone, Debug, PartialEq)]
@@ -238,28 +241,49 @@ fn lanes<L: Lane>(
 pub fn throughput(spec: &FilterSpec, channels: usize, samples: usize) -> ThroughputReport {
     let pool = pool();
     let updates = (channels * samples) as f64;
-    let timed = [
-        ("scalar-f32", scalar::<f32>(spec, &pool, channels, samples)),
-        ("scalar-f64", scalar::<f64>(spec, &pool, channels, samples)),
-        (
-            "lanes-f32x8",
-            lanes::<f32x8>(spec, &pool, channels, samples, false),
-        ),
-        (
-            "lanes-f64x4",
-            lanes::<f64x4>(spec, &pool, channels, samples, false),
-        ),
-        (
-            "lanes-f32x8-threads",
-            lanes::<f32x8>(spec, &pool, channels, samples, true),
-        ),
+    let single = std::env::var("RF_SINGLE").is_ok();
+    let modes: [(&'static str, &dyn Fn() -> f64); 5] = [
+        ("scalar-f32", &|| {
+            scalar::<f32>(spec, &pool, channels, samples)
+        }),
+        ("scalar-f64", &|| {
+            scalar::<f64>(spec, &pool, channels, samples)
+        }),
+        ("lanes-f32x8", &|| {
+            if single {
+                lanes::<f32x8>(spec, &pool, channels, samples, false)
+            } else {
+                lanes::<X2<f32x8>>(spec, &pool, channels, samples, false)
+            }
+        }),
+        ("lanes-f64x4", &|| {
+            if single {
+                lanes::<f64x4>(spec, &pool, channels, samples, false)
+            } else {
+                lanes::<X2<f64x4>>(spec, &pool, channels, samples, false)
+            }
+        }),
+        ("lanes-f32x8-threads", &|| {
+            lanes::<X2<f32x8>>(spec, &pool, channels, samples, true)
+        }),
     ];
+    // Best of ROUNDS, the modes taking turns: a machine shared with other work slows single
+    // runs down, never speeds them up, so the fastest run is the closest to the code's cost.
+    let mut best = [f64::INFINITY; 5];
+    for _ in 0..ROUNDS {
+        for (b, (_, run)) in best.iter_mut().zip(&modes) {
+            *b = b.min(run());
+        }
+    }
+    let timed = modes
+        .iter()
+        .zip(best)
+        .map(|((mode, _), secs)| (*mode, secs));
     ThroughputReport {
         filter: spec.kind().name().into(),
         channels,
         samples,
         results: timed
-            .into_iter()
             .map(|(mode, secs)| ModeResult {
                 mode,
                 updates_per_s: updates / secs,
