@@ -58,8 +58,8 @@ fn simulator(c: &mut Criterion) {
 /// 6D and the EKF 9D, on the concrete filter type; throughput is in channel-updates, so the
 /// lane modes compare directly with the scalar ones.
 fn batch_filters(c: &mut Criterion) {
+    use rootfuse::attitude::ImuSample;
     use rootfuse::attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-    use rootfuse::attitude::{ImuSample, OrientationFilter};
     const STEPS: usize = 64;
     fn data<T: Lane>() -> Vec<(ImuSample<T>, T)> {
         // A slow turn about a tilted axis; gravity and field rotated accordingly.

@@ -78,7 +78,7 @@ pub struct ChannelOutput {
     pub bias: Vec<Vec3<f64>>,
     /// Attitude-error covariance after each sample, rad², as its upper triangle
     /// `[xx, xy, xz, yy, yz, zz]` in the convention of
-    /// [`OrientationFilter::attitude_covariance`] (earth frame, ENU: `zz` is heading). Empty
+    /// [`OrientationFilter::attitude_covariance`](rootfuse_attitude::OrientationFilter::attitude_covariance) (earth frame, ENU: `zz` is heading). Empty
     /// when not collected or when the filter carries none.
     pub covariance: Vec<[f64; 6]>,
     /// Per sample, the [`flag`] bits of what the filter skipped at that sample (empty when
