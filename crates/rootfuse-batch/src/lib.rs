@@ -114,13 +114,13 @@
 //! - **Tick by tick** (real-time streaming of many sensors, one sample for every channel, then
 //!   the next; [`Order::Tick`]): each chunk's filter state (94 B per channel for Mahony in `X2<f32x8>`,
 //!   40 B of it the rejection counters) is loaded and stored once per sample. The input pool is the same
-//!   1.3 MB either way. While all state fits in L1d (48 KiB on this machine: about 500
-//!   channels) a tick costs 5–10 % over chunk by chunk (loads, stores, the loop);
-//!   up to L2 (2 MiB: about 22 000 channels) the hardware prefetcher streams the state in
-//!   sequential order and the loss stays within about 20 %; past L2 the state and the input
-//!   pool compete for L2 and the state comes from L3 (260 MiB, shared, so the working set of
-//!   1e6 Mahony channels, 92 MiB, still fits): at 1e6 channels a tick runs at 0.4 of chunk by
-//!   chunk (8.5e7/s), the cost of moving the state in and out through L3 every sample.
+//!   1.3 MB either way. Measured (one sweep): within L1d (48 KiB on this machine, about 500
+//!   channels) a tick costs 7–12 % more than chunk by chunk (the loads, stores and loop per
+//!   sample); within L2 (2 MiB, about 22 000 channels) 15–25 %, the hardware prefetcher
+//!   streaming the state in its sequential order; past L2 the state and the input pool
+//!   compete for L2 and the state comes from L3 (260 MiB, shared, so even the 92 MiB of 1e6
+//!   Mahony channels fit): −23 % at 262 144 channels, and at 1e6 channels a tick runs at 0.4
+//!   of chunk by chunk (8.5e7/s), the cost of moving the state in and out every sample.
 //!   Beyond L3 it would be bound by memory bandwidth. Streaming applications should therefore
 //!   feed blocks of several samples per channel ([`Batch::run_soa`] and
 //!   [`Batch::run_channels`] take any number of steps per call) to get the chunk-by-chunk
