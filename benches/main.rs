@@ -53,12 +53,13 @@ fn simulator(c: &mut Criterion) {
     group.finish();
 }
 
-/// The batch engine's unit of work: one chunk of channels (one scalar channel, or one
-/// `f32x8`/`f64x4` of channels) over 64 samples, for Mahony 6D and the EKF 9D; throughput is
-/// in channel-updates, so the lane modes compare directly with the scalar ones.
+/// The batch engine's unit of work: one chunk of channels (one scalar channel, one
+/// `f32x8`/`f64x4` of channels, or two interleaved, `X2<f32x8>`) over 64 samples, for Mahony
+/// 6D and the EKF 9D, on the concrete filter type; throughput is in channel-updates, so the
+/// lane modes compare directly with the scalar ones.
 fn batch_filters(c: &mut Criterion) {
-    use rootfuse::attitude::registry::FilterSpec;
-    use rootfuse::attitude::{ImuSample, OrientationFilter};
+    use rootfuse::attitude::ImuSample;
+    use rootfuse::attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
     const STEPS: usize = 64;
     fn data<T: Lane>() -> Vec<(ImuSample<T>, T)> {
         // A slow turn about a tilted axis; gravity and field rotated accordingly.
@@ -74,22 +75,32 @@ fn batch_filters(c: &mut Criterion) {
             })
             .collect()
     }
-    fn bench<T: Lane>(
-        group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
-        mode: &str,
-        spec: &FilterSpec,
-    ) {
-        let input = data::<T>();
-        group.throughput(Throughput::Elements((STEPS * T::LANES) as u64));
-        group.bench_function(mode, |b| {
-            let mut f = spec.build::<T>();
-            b.iter(|| {
-                for (s, dt) in black_box(&input) {
-                    f.update(s, *dt);
-                }
-                black_box(f.quat())
-            })
-        });
+    type Group<'a> = criterion::BenchmarkGroup<'a, criterion::measurement::WallTime>;
+    struct Bench<'a, 'b> {
+        group: &'a mut Group<'b>,
+        mode: &'a str,
+    }
+    impl<T: Lane> FilterVisitor<T> for Bench<'_, '_> {
+        type Output = ();
+        fn visit<F: RegisteredFilter<T>>(self, spec: &FilterSpec) {
+            let input = data::<T>();
+            self.group
+                .throughput(Throughput::Elements((STEPS * T::LANES) as u64));
+            let Some(mut f) = F::from_spec(spec) else {
+                return;
+            };
+            self.group.bench_function(self.mode, |b| {
+                b.iter(|| {
+                    for (s, dt) in black_box(&input) {
+                        f.update(s, *dt);
+                    }
+                    black_box(f.quat())
+                })
+            });
+        }
+    }
+    fn bench<T: Lane>(group: &mut Group<'_>, mode: &str, spec: &FilterSpec) {
+        spec.visit::<T, _>(Bench { group, mode });
     }
     for (name, dof) in [("mahony", 6u8), ("ekf", 9)] {
         let mut spec = FilterSpec::new(name).unwrap();
@@ -99,6 +110,7 @@ fn batch_filters(c: &mut Criterion) {
         bench::<f64>(&mut group, "scalar-f64", &spec);
         bench::<wide::f32x8>(&mut group, "lanes-f32x8", &spec);
         bench::<wide::f64x4>(&mut group, "lanes-f64x4", &spec);
+        bench::<rootfuse_lane::X2<wide::f32x8>>(&mut group, "lanes-x2-f32x8", &spec);
         group.finish();
     }
 }

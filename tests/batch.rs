@@ -393,3 +393,130 @@ fn covariance_and_flags_equal_scalar_runs() {
         }
     }
 }
+
+/// Channels with their own parameters (`Batch::with_channel_specs`): each equals a scalar run
+/// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, for a filter
+/// with gains in lanes (Mahony) and one with an `f64` parameter struct (the EKF).
+#[test]
+fn per_channel_specs_equal_scalar_runs() {
+    let recs = recordings(11);
+    for (name, key, values) in [
+        ("mahony", "kp", [0.5, 2.0, 0.1]),
+        ("ekf", "gyr_noise", [0.01, 0.05, 0.002]),
+    ] {
+        // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
+        let specs: Vec<FilterSpec> = (0..recs.len())
+            .map(|c| {
+                let mut s = FilterSpec::new(name).unwrap();
+                s.set(&format!("{key}={}", values[c % 3])).unwrap();
+                s.set_dof(if c % 4 == 3 { 6 } else { 9 }).unwrap();
+                s
+            })
+            .collect();
+        fn check<V: Lane>(specs: &[FilterSpec], recs: &[Recording], what: &str) {
+            let channels: Vec<(Vec<ImuSample<f64>>, Vec<f64>)> = recs
+                .iter()
+                .map(|r| {
+                    (
+                        (0..r.len()).map(|k| r.sample(k)).collect(),
+                        (0..r.len()).map(|k| r.dt(k)).collect(),
+                    )
+                })
+                .collect();
+            let input: Vec<Channel> = channels
+                .iter()
+                .map(|(s, d)| Channel { samples: s, dt: d })
+                .collect();
+            let mut batch = Batch::<V>::with_channel_specs(specs).unwrap();
+            batch.run_channels(&input);
+            for (c, (spec, rec)) in specs.iter().zip(recs).enumerate() {
+                let alone = scalar_run::<f32>(spec, rec);
+                let q = *alone.quat.last().unwrap();
+                let (a, b) = (batch.quat(c), q);
+                assert!(
+                    a.to_array()
+                        .into_iter()
+                        .zip(b.to_array())
+                        .all(|(x, y)| same_bits(x, y)),
+                    "{what} channel {c}: {a:?} vs {b:?}"
+                );
+                assert_eq!(batch.rejections(c), alone.rejections, "{what} channel {c}");
+            }
+        }
+        check::<rootfuse_lane::wide::f32x8>(&specs, &recs, &format!("{name} f32x8"));
+        check::<rootfuse_lane::X2<rootfuse_lane::wide::f32x8>>(
+            &specs,
+            &recs,
+            &format!("{name} X2<f32x8>"),
+        );
+    }
+    // A concrete-type batch refuses a spec of another filter, naming the channel.
+    let specs = [
+        FilterSpec::new("mahony").unwrap(),
+        FilterSpec::new("ekf").unwrap(),
+    ];
+    let err = Batch::<f32, rootfuse_attitude::filters::Mahony<f32>>::with_channel_specs(&specs);
+    assert_eq!(err.unwrap_err().channel, 1);
+}
+
+/// The interleaved lane types (`X2`), which the engine uses for small filters, equal scalar
+/// runs bit for bit for every registered filter, 6D and 9D, with tail lanes and bad data.
+#[test]
+fn interleaved_lanes_equal_scalar_runs() {
+    let recs = recordings(13);
+    for (spec, dof) in specs() {
+        let f32_out = rootfuse::batch::run_sources::<
+            rootfuse_lane::X2<rootfuse_lane::wide::f32x8>,
+            _,
+        >(&spec, &recs);
+        let f64_out = rootfuse::batch::run_sources::<
+            rootfuse_lane::X2<rootfuse_lane::wide::f64x4>,
+            _,
+        >(&spec, &recs);
+        for (i, rec) in recs.iter().enumerate() {
+            let what = |p: &str| format!("{} {dof}D {p}, channel {i}", spec.kind().name());
+            assert_same(
+                &f32_out[i],
+                &scalar_run::<f32>(&spec, rec),
+                &what("X2<f32x8>"),
+            );
+            assert_same(
+                &f64_out[i],
+                &scalar_run::<f64>(&spec, rec),
+                &what("X2<f64x4>"),
+            );
+        }
+    }
+}
+
+/// Each filter's batch costs its own state, not the largest filter's (the crate docs' table
+/// comes from `cargo test state_bytes -- --nocapture`).
+#[test]
+fn state_bytes_are_the_filters_own() {
+    use rootfuse_attitude::registry::{FilterVisitor, RegisteredFilter};
+    struct PerChannel;
+    impl<L: Lane> FilterVisitor<L> for PerChannel {
+        type Output = usize;
+        fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) -> usize {
+            Batch::<L, F>::try_new(spec, 1)
+                .unwrap()
+                .state_bytes_per_channel()
+        }
+    }
+    type F8 = rootfuse_lane::wide::f32x8;
+    type D4 = rootfuse_lane::wide::f64x4;
+    type X8 = rootfuse_lane::X2<F8>;
+    let any = Batch::<F8>::new(&FilterSpec::new("gyro").unwrap(), 1).state_bytes_per_channel();
+    println!("| filter | f32x8 | f64x4 | X2<f32x8> |");
+    for &kind in FilterKind::ALL {
+        let spec = FilterSpec::new(kind.name()).unwrap();
+        let (a, b, c) = (
+            spec.visit::<F8, _>(PerChannel),
+            spec.visit::<D4, _>(PerChannel),
+            spec.visit::<X8, _>(PerChannel),
+        );
+        println!("| {} | {a} | {b} | {c} |", kind.name());
+        assert!(a <= any, "{}: {a} > {any}", kind.name());
+    }
+    println!("| AnyFilter | {any} | |");
+}

@@ -5,13 +5,44 @@
 
 use crate::quat::Quat;
 use crate::vec3::Vec3;
-use rootfuse_lane::{Lane, Mat};
+use rootfuse_lane::{Lane, Mask, Mat};
+
+/// Below this `a² = |ω·dt/2|²` (rad², i.e. `a < 0.1`, 1150 °/s at 100 Hz) [`integrate_gyro`]
+/// takes `cos a` and `sin a / a` from their Taylor series in `a²`. Through the `a⁸` terms the
+/// truncation error is below `a¹⁰/10! < 3e-17` (under one ulp of f64), so the series is as
+/// accurate as the trigonometric path, and it needs no square root, range reduction or
+/// division.
+pub const GYRO_SERIES_A2: f64 = 0.01;
 
 /// Integrates body rates over `dt` by the exact exponential map:
 /// `q ⊗ exp(ω·dt/2)`, renormalised. `omega` in rad/s (sensor frame), `dt` in s.
+///
+/// The rule, per lane: where `a² = |ω·dt/2|² < `[`GYRO_SERIES_A2`] the exponential's
+/// `cos a` and `sin a / a` come from their series in `a²`, elsewhere from [`Quat::exp`]. When
+/// every lane is below the limit (the usual case) only the series is computed; otherwise both
+/// are and each lane selects by its own `a²`, so a lane's result does not depend on its
+/// neighbours and equals the scalar result bit for bit.
 #[inline]
 pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
-    (q * Quat::from_rotation_vector(omega * dt)).normalize()
+    let v = omega * dt * T::from_f64(0.5);
+    let a2 = v.norm_squared();
+    let small = a2.simd_lt(T::from_f64(GYRO_SERIES_A2));
+    let c = |x: f64| T::from_f64(x);
+    // Horner in a²: cos a = 1 − a²/2! + a⁴/4! − a⁶/6! + a⁸/8!,
+    // sin a / a = 1 − a²/3! + a⁴/5! − a⁶/7! + a⁸/9!.
+    let cos = T::one()
+        + a2 * (c(-1.0 / 2.0)
+            + a2 * (c(1.0 / 24.0) + a2 * (c(-1.0 / 720.0) + a2 * c(1.0 / 40320.0))));
+    let sinc = T::one()
+        + a2 * (c(-1.0 / 6.0)
+            + a2 * (c(1.0 / 120.0) + a2 * (c(-1.0 / 5040.0) + a2 * c(1.0 / 362880.0))));
+    let series = Quat::from_parts(cos, v * sinc);
+    let e = if small.all() {
+        series
+    } else {
+        Quat::select(small, series, Quat::exp(v))
+    };
+    (q * e).normalize()
 }
 
 /// Rotation vector over one interval with the two-sample coning correction

@@ -143,7 +143,73 @@ macro_rules! registry {
                 match self { $(Self::$variant(f) => OrientationFilter::attitude_covariance(f),)* }
             }
         }
+
+        impl<T: Lane> FromSpec<T> for AnyFilter<T> {
+            fn from_spec(spec: &FilterSpec) -> Option<Self> {
+                Some(spec.build())
+            }
+        }
+
+        $(
+            impl<T: Lane> FromSpec<T> for $filter<T> {
+                fn from_spec(spec: &FilterSpec) -> Option<Self> {
+                    match &spec.params {
+                        AnyParams::$variant(p) => Some($filter::new(p)),
+                        #[allow(unreachable_patterns)]
+                        _ => None,
+                    }
+                }
+            }
+        )*
+
+        impl FilterSpec {
+            /// Calls `visitor` with this spec's concrete filter type over lanes `T`: one
+            /// dispatch, after which everything runs on the concrete type (no enum match per
+            /// sample, and state sized for this filter, not for the largest one).
+            pub fn visit<T: Lane, V: FilterVisitor<T>>(&self, visitor: V) -> V::Output {
+                match self.kind { $(FilterKind::$variant => visitor.visit::<$filter<T>>(self),)* }
+            }
+        }
     };
+}
+
+/// A filter type that can be built from a [`FilterSpec`] of its own kind.
+pub trait FromSpec<T: Lane>: Sized {
+    /// A fresh filter with the spec's parameters, or `None` when the spec is of another
+    /// filter (always `Some` for [`AnyFilter`]).
+    fn from_spec(spec: &FilterSpec) -> Option<Self>;
+}
+
+/// The bounds every registered filter type meets, as [`FilterVisitor::visit`] hands it over.
+pub trait RegisteredFilter<T: Lane>:
+    OrientationFilter<T> + FromSpec<T> + Clone + fmt::Debug + Send + Sync + 'static
+{
+}
+impl<T: Lane, F> RegisteredFilter<T> for F where
+    F: OrientationFilter<T> + FromSpec<T> + Clone + fmt::Debug + Send + Sync + 'static
+{
+}
+
+/// Code generic over the concrete filter type, run by [`FilterSpec::visit`].
+///
+/// ```
+/// use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
+///
+/// struct StateBytes;
+/// impl FilterVisitor<f32> for StateBytes {
+///     type Output = usize;
+///     fn visit<F: RegisteredFilter<f32>>(self, _: &FilterSpec) -> usize {
+///         core::mem::size_of::<F>()
+///     }
+/// }
+/// let spec = FilterSpec::new("mahony").unwrap();
+/// assert!(spec.visit(StateBytes) < core::mem::size_of::<rootfuse_attitude::registry::AnyFilter<f32>>());
+/// ```
+pub trait FilterVisitor<T: Lane> {
+    /// What the visit returns.
+    type Output;
+    /// Runs with `F`, the spec's concrete filter type (`F::from_spec(spec)` is `Some`).
+    fn visit<F: RegisteredFilter<T>>(self, spec: &FilterSpec) -> Self::Output;
 }
 
 registry! {

@@ -1,7 +1,7 @@
 //! [`Batch`]: N channels of one filter, [`Lane::LANES`] channels per chunk.
 
 use rayon::prelude::*;
-use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
+use rootfuse_attitude::registry::{AnyFilter, FilterSpec, RegisteredFilter};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
 use rootfuse_lane::Counts;
 
@@ -74,6 +74,19 @@ pub struct Channel<'a> {
     pub dt: &'a [f64],
 }
 
+/// A reference to a source is a source (so channels can be regrouped without copying).
+impl<S: ChannelSource> ChannelSource for &S {
+    fn len(&self) -> usize {
+        (**self).len()
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        (**self).sample(i)
+    }
+    fn dt(&self, i: usize) -> f64 {
+        (**self).dt(i)
+    }
+}
+
 impl ChannelSource for Channel<'_> {
     fn len(&self) -> usize {
         self.samples.len().min(self.dt.len())
@@ -119,11 +132,12 @@ fn sample_from_f64<S: Lane>(s: &ImuSample<f64>) -> ImuSample<S> {
     ImuSample::new(c(s.gyr), c(s.acc), c(s.mag))
 }
 
-/// [`Lane::LANES`] channels of one filter in one [`AnyFilter`], with the bookkeeping that makes
-/// unused and masked lanes invisible.
+/// [`Lane::LANES`] channels of one filter `F` (by default any registered filter,
+/// [`AnyFilter`]; a concrete type such as `Mahony<L>` costs only its own state), with the
+/// bookkeeping that makes unused and masked lanes invisible.
 #[derive(Clone, Debug)]
-pub struct Chunk<L: Lane> {
-    filter: AnyFilter<L>,
+pub struct Chunk<L: Lane, F = AnyFilter<L>> {
+    filter: F,
     /// Bits of the lanes that carry a channel.
     used: u64,
     /// Per lane, the steps fed as a skip because the channel had no sample: the filter counts
@@ -133,15 +147,15 @@ pub struct Chunk<L: Lane> {
     pad_dt: L,
 }
 
-impl<L: Lane> Chunk<L> {
-    fn new(spec: &FilterSpec, used_lanes: usize) -> Self {
+impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
+    fn new(filter: F, used_lanes: usize) -> Self {
         let used = if used_lanes >= 64 {
             u64::MAX
         } else {
             (1u64 << used_lanes) - 1
         };
         Self {
-            filter: spec.build::<L>(),
+            filter,
             used,
             masked: L::Counts::default(),
             pad: pad_sample::<L>(),
@@ -155,7 +169,7 @@ impl<L: Lane> Chunk<L> {
     }
 
     /// The filter of all lanes (unused lanes hold padding state: never report them).
-    pub fn filter(&self) -> &AnyFilter<L> {
+    pub fn filter(&self) -> &F {
         &self.filter
     }
 
@@ -249,10 +263,35 @@ impl<L: Lane> Chunk<L> {
     }
 }
 
+/// A channel's spec that the batch's filter type cannot build (see [`Batch::try_new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpecMismatch {
+    /// The first channel whose spec is of another filter than the batch's type.
+    pub channel: usize,
+}
+
+impl core::fmt::Display for SpecMismatch {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "channel {}: the spec is of another filter than the batch's type",
+            self.channel
+        )
+    }
+}
+impl std::error::Error for SpecMismatch {}
+
 /// N channels of one registered filter, [`Lane::LANES`] channels per [`Chunk`].
 ///
-/// Parameters are shared by all channels (one [`FilterSpec`]); state, time steps and
-/// rejection counters are per channel.
+/// `F` is the filter type of the chunks: [`AnyFilter<L>`] by default (any registered filter,
+/// chosen at run time, each channel costing the largest filter's state), or a concrete type
+/// such as `Mahony<L>` ([`Batch::try_new`]), which costs only its own state and dispatches
+/// nothing per sample; [`FilterSpec::visit`] turns a run-time choice into a concrete type once
+/// per batch (as [`run_recordings`](crate::run_recordings) does).
+///
+/// State, time steps and rejection counters are per channel; parameters are per chunk: with
+/// [`Batch::new`] every channel shares one [`FilterSpec`], with
+/// [`Batch::with_channel_specs`] each channel has its own.
 ///
 /// ```
 /// use rootfuse_attitude::registry::FilterSpec;
@@ -270,55 +309,203 @@ impl<L: Lane> Chunk<L> {
 /// assert_eq!(batch.rejections(3).acc, 0);
 /// ```
 #[derive(Clone, Debug)]
-pub struct Batch<L: Lane> {
+pub struct Batch<L: Lane, F = AnyFilter<L>> {
     channels: usize,
-    chunks: Vec<Chunk<L>>,
+    chunks: Vec<Chunk<L, F>>,
+    /// Where channel `c` runs: lane `slot[c] % LANES` of chunk `slot[c] / LANES`. Empty when
+    /// channel `c` is simply slot `c` (one spec for all channels).
+    slot: Vec<usize>,
 }
 
 impl<L: Lane> Batch<L> {
-    /// `channels` fresh filters of `spec`.
+    /// `channels` fresh filters of `spec`, in [`AnyFilter`] chunks.
     pub fn new(spec: &FilterSpec, channels: usize) -> Self {
+        let build = |used: usize| Chunk::new(spec.build::<L>(), used);
         let chunks = (0..channels.div_ceil(L::LANES))
-            .map(|c| Chunk::new(spec, (channels - c * L::LANES).min(L::LANES)))
+            .map(|c| build((channels - c * L::LANES).min(L::LANES)))
             .collect();
-        Self { channels, chunks }
+        Self {
+            channels,
+            chunks,
+            slot: Vec::new(),
+        }
+    }
+}
+
+impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
+    /// `channels` fresh filters of `spec` in chunks of type `F`; an error if `spec` is of
+    /// another filter than `F`.
+    ///
+    /// ```
+    /// use rootfuse_attitude::filters::Mahony;
+    /// use rootfuse_attitude::registry::FilterSpec;
+    /// use rootfuse_batch::Batch;
+    /// use rootfuse_lane::wide::f32x8;
+    ///
+    /// let spec = FilterSpec::new("mahony").unwrap();
+    /// let batch = Batch::<f32x8, Mahony<f32x8>>::try_new(&spec, 100).unwrap();
+    /// assert!(batch.state_bytes_per_channel() < rootfuse_batch::state_bytes_per_channel::<f32x8>());
+    /// assert!(Batch::<f32x8, Mahony<f32x8>>::try_new(&FilterSpec::new("ekf").unwrap(), 1).is_err());
+    /// ```
+    pub fn try_new(spec: &FilterSpec, channels: usize) -> Result<Self, SpecMismatch> {
+        let first = F::from_spec(spec).ok_or(SpecMismatch { channel: 0 })?;
+        let chunks = (0..channels.div_ceil(L::LANES))
+            .map(|c| Chunk::new(first.clone(), (channels - c * L::LANES).min(L::LANES)))
+            .collect();
+        Ok(Self {
+            channels,
+            chunks,
+            slot: Vec::new(),
+        })
     }
 
+    /// One channel per spec, each with its own parameters (for example per-sensor gains or
+    /// noise levels); an error if `F` cannot build one of them (with [`AnyFilter`] any
+    /// registered filter can, even mixed).
+    ///
+    /// Channels with equal specs share chunks, in order of first appearance; a chunk's lanes
+    /// all hold one spec, so its filter is built exactly like the scalar one and each
+    /// channel's result equals a scalar run with its own spec, bit for bit. Each distinct spec
+    /// costs at most one partly filled chunk (its tail lanes run padding). Use
+    /// [`chunk_channels`](Self::chunk_channels) to pack struct-of-arrays input.
+    ///
+    /// Why chunks of equal specs rather than parameters in lanes: several filters keep their
+    /// parameters as one `f64` struct shared by the lanes (the flagship's `SqrtEskfParams`,
+    /// converted per update), so per-lane values would need those filters to hold them as
+    /// lanes; grouping gives the same results for every registered filter now.
+    ///
+    /// ```
+    /// use rootfuse_attitude::registry::FilterSpec;
+    /// use rootfuse_attitude::{ImuSample, Vec3};
+    /// use rootfuse_batch::{Batch, Channel};
+    /// use rootfuse_lane::wide::f32x8;
+    ///
+    /// // Three sensors, the second with a stiffer Mahony gain.
+    /// let specs: Vec<FilterSpec> = ["kp=0.5", "kp=2.0", "kp=0.5"]
+    ///     .iter()
+    ///     .map(|kp| {
+    ///         let mut s = FilterSpec::new("mahony").unwrap();
+    ///         s.set(kp).unwrap();
+    ///         s.set_dof(6).unwrap();
+    ///         s
+    ///     })
+    ///     .collect();
+    /// let mut batch = Batch::<f32x8>::with_channel_specs(&specs).unwrap();
+    /// assert_eq!(batch.chunk_channels(0), [0, 2]); // kp = 0.5
+    /// assert_eq!(batch.chunk_channels(1), [1]); // kp = 2.0
+    /// let tilted = vec![ImuSample::six_d(Vec3::zero(), Vec3::new(0.0, 3.0, 9.3)); 50];
+    /// let dt = vec![0.01; 50];
+    /// let channels: Vec<Channel> = (0..3).map(|_| Channel { samples: &tilted, dt: &dt }).collect();
+    /// batch.run_channels(&channels);
+    /// assert_eq!(batch.quat(0), batch.quat(2));
+    /// ```
+    pub fn with_channel_specs(specs: &[FilterSpec]) -> Result<Self, SpecMismatch> {
+        // Distinct specs in order of first appearance, and each channel's group.
+        let mut distinct: Vec<&FilterSpec> = Vec::new();
+        let mut group = Vec::with_capacity(specs.len());
+        for spec in specs {
+            let g = match distinct.iter().position(|d| *d == spec) {
+                Some(g) => g,
+                None => {
+                    distinct.push(spec);
+                    distinct.len() - 1
+                }
+            };
+            group.push(g);
+        }
+        let mut chunks = Vec::new();
+        let mut slot = vec![0; specs.len()];
+        for (g, spec) in distinct.iter().enumerate() {
+            let members: Vec<usize> = (0..specs.len()).filter(|&c| group[c] == g).collect();
+            let first = members[0];
+            let filter = F::from_spec(spec).ok_or(SpecMismatch { channel: first })?;
+            for lanes in members.chunks(L::LANES) {
+                for (lane, &c) in lanes.iter().enumerate() {
+                    slot[c] = chunks.len() * L::LANES + lane;
+                }
+                chunks.push(Chunk::new(filter.clone(), lanes.len()));
+            }
+        }
+        Ok(Self {
+            channels: specs.len(),
+            chunks,
+            slot,
+        })
+    }
+}
+
+impl<L: Lane, F: OrientationFilter<L> + Send> Batch<L, F> {
     /// Number of channels.
     pub fn channels(&self) -> usize {
         self.channels
     }
 
-    /// The chunks: channel `c` is lane `c % LANES` of chunk `c / LANES`.
-    pub fn chunks(&self) -> &[Chunk<L>] {
+    /// Bytes of one chunk per lane: the filter's state and parameters plus the chunk's
+    /// masking bookkeeping, `size_of::<Chunk<L, F>>() / LANES`.
+    pub fn state_bytes_per_channel(&self) -> usize {
+        core::mem::size_of::<Chunk<L, F>>() / L::LANES
+    }
+
+    /// Slot (`chunk × LANES + lane`) of channel `c`.
+    #[inline]
+    fn slot(&self, c: usize) -> usize {
+        self.slot.get(c).copied().unwrap_or(c)
+    }
+
+    /// The channels in the lanes of chunk `chunk`, in lane order (fewer than `LANES` for a
+    /// partly filled chunk; empty past the last chunk). With [`Batch::new`] chunk `k` holds
+    /// channels `k × LANES ..`.
+    pub fn chunk_channels(&self, chunk: usize) -> Vec<usize> {
+        let Some(ch) = self.chunks.get(chunk) else {
+            return Vec::new();
+        };
+        let lanes = ch.used_lanes();
+        (0..lanes)
+            .filter_map(|lane| {
+                let s = chunk * L::LANES + lane;
+                if self.slot.is_empty() {
+                    Some(s)
+                } else {
+                    self.slot.iter().position(|&x| x == s)
+                }
+            })
+            .collect()
+    }
+
+    /// The chunks (see [`chunk_channels`](Self::chunk_channels) for which channel is where).
+    pub fn chunks(&self) -> &[Chunk<L, F>] {
         &self.chunks
     }
 
     /// The chunks, to drive them directly (e.g. from your own struct-of-arrays buffers).
-    pub fn chunks_mut(&mut self) -> &mut [Chunk<L>] {
+    pub fn chunks_mut(&mut self) -> &mut [Chunk<L, F>] {
         &mut self.chunks
     }
 
     /// Orientation of channel `c`, in `f64` (panics if `c >= channels()`).
     pub fn quat(&self, c: usize) -> Quat<f64> {
         assert!(c < self.channels, "channel {c} out of range");
-        self.chunks[c / L::LANES].quat(c % L::LANES)
+        let s = self.slot(c);
+        self.chunks[s / L::LANES].quat(s % L::LANES)
     }
 
     /// Gyro-bias estimate of channel `c`, rad/s, in `f64` (panics if `c >= channels()`).
     pub fn bias(&self, c: usize) -> Vec3<f64> {
         assert!(c < self.channels, "channel {c} out of range");
-        self.chunks[c / L::LANES].bias(c % L::LANES)
+        let s = self.slot(c);
+        self.chunks[s / L::LANES].bias(s % L::LANES)
     }
 
     /// Rejection counters of channel `c` (panics if `c >= channels()`).
     pub fn rejections(&self, c: usize) -> RejectionTotals {
         assert!(c < self.channels, "channel {c} out of range");
-        self.chunks[c / L::LANES].rejections(c % L::LANES)
+        let s = self.slot(c);
+        self.chunks[s / L::LANES].rejections(s % L::LANES)
     }
 
     /// Feeds one block of struct-of-arrays input: `samples[c * steps + k]` and
-    /// `dt[c * steps + k]` are step `k` of chunk `c`, with `steps = samples.len() / chunks`.
+    /// `dt[c * steps + k]` are step `k` of chunk `c`, with `steps = samples.len() / chunks`
+    /// (lane `i` of chunk `c` is channel `chunk_channels(c)[i]`).
     /// Chunks run in parallel (rayon); each chunk's steps run in order, so the result does not
     /// depend on the thread count. Extra entries past `chunks × steps` are ignored.
     pub fn run_soa(&mut self, samples: &[ImuSample<L>], dt: &[L]) {
@@ -346,9 +533,23 @@ impl<L: Lane> Batch<L> {
     pub fn run_channels<S: ChannelSource>(&mut self, channels: &[S]) {
         let steps = channels.iter().map(|c| c.len()).max().unwrap_or(0);
         let channels = &channels[..channels.len().min(self.channels)];
+        if self.slot.is_empty() {
+            self.chunks
+                .par_iter_mut()
+                .zip(channels.par_chunks(L::LANES))
+                .for_each(|(chunk, srcs)| chunk.run_sources(srcs, 0..steps, |_, _, _| {}));
+            return;
+        }
+        // Regrouped channels: gather each chunk's sources by reference (one small vector per
+        // chunk and call, not per update). A chunk's lanes are filled from lane 0, so a
+        // missing channel can only be at the end, where `run_sources` masks it.
+        let mut by_chunk: Vec<Vec<&S>> = vec![Vec::new(); self.chunks.len()];
+        for (c, src) in channels.iter().enumerate() {
+            by_chunk[self.slot[c] / L::LANES].push(src);
+        }
         self.chunks
             .par_iter_mut()
-            .zip(channels.par_chunks(L::LANES))
+            .zip(by_chunk.par_iter())
             .for_each(|(chunk, srcs)| chunk.run_sources(srcs, 0..steps, |_, _, _| {}));
     }
 }

@@ -19,11 +19,17 @@
 //! ```
 //!
 //! # Layout
-//! Channel `c` is lane `c % LANES` of chunk `c / LANES` ([`Batch`], [`Chunk`]). Parameters
-//! are shared by all channels of a batch (one [`FilterSpec`]); per-channel parameters would
-//! need the filters to hold them in lanes, which they already do internally (every gain is a
-//! `T`), so it is a constructor away, not a layout change. State, time steps and rejection
-//! counters are per channel.
+//! Channel `c` is lane `c % LANES` of chunk `c / LANES` ([`Batch`], [`Chunk`]) when all
+//! channels share one [`FilterSpec`] ([`Batch::new`]). With per-channel parameters
+//! ([`Batch::with_channel_specs`]) channels with equal specs share chunks, in order of first
+//! appearance, and [`Batch::chunk_channels`] says which channel is in which lane; each chunk
+//! builds its filter from its own spec exactly like a scalar run, so results stay bit for bit
+//! those of scalar runs with each channel's own parameters (tested for a filter with gains in
+//! lanes and one with an `f64` parameter struct). Per-lane parameters inside one chunk would
+//! need every filter to hold its parameters as lanes; Mahony does (every gain is a `T`), the
+//! flagship does not (`SqrtEskf` keeps `p: SqrtEskfParams` in `f64` and converts per update),
+//! so grouping is the one rule that holds for every registered filter. State, time steps and
+//! rejection counters are per channel.
 //!
 //! # Tail lanes and masking
 //! The last chunk's lanes past the last channel are fed [`pad_sample`] (gyro zero, gravity
@@ -37,22 +43,35 @@
 //! that a channel with masked steps equals a scalar run without them, bit for bit.
 //!
 //! # Memory and streaming
-//! The state of a channel is `size_of::<AnyFilter<L>>() / LANES` bytes
-//! ([`state_bytes_per_channel`]); `AnyFilter` is an enum, so every filter costs as much as the
-//! largest one (the EKF with its 7×7 covariance). Measured with `target-cpu=native` (the
-//! enum size, then the filter's own struct):
+//! A [`Batch<L, F>`](Batch) stores chunks of one filter type `F`. With the default
+//! `F = AnyFilter<L>` (a run-time choice, [`Batch::new`]) every channel costs the largest
+//! registered filter ([`state_bytes_per_channel`]); with the concrete type (`Mahony<L>`, …,
+//! [`Batch::try_new`]) a channel costs its own filter's state. [`run_recordings`] and
+//! [`throughput`] turn the run-time [`FilterSpec`] into the concrete type once per batch
+//! ([`FilterSpec::visit`](rootfuse_attitude::registry::FilterSpec::visit)), so they use the
+//! small layout and match nothing per sample. Bytes per channel
+//! ([`Batch::state_bytes_per_channel`]: filter state, parameters, the per-lane `u64`
+//! rejection counters, and the chunk's masking bookkeeping and padding sample), measured with
+//! `target-cpu=native` (`cargo test state_bytes -- --nocapture`):
 //!
-//! | lanes | `AnyFilter` per channel | gyro | complementary | mahony | madgwick | ekf | sqrt-eskf |
-//! |---|---|---|---|---|---|---|---|
-//! | `f32x8` | 376 | 64 | 72 | 92 | 84 | 296 | 376 |
-//! | `f64x4` | 712 | 88 | 104 | 144 | 128 | 552 | 712 |
+//! | filter | `f32x8` | `f64x4` | `X2<f32x8>` |
+//! |---|---|---|---|
+//! | `gyro` | 116 | 184 | 112 |
+//! | `complementary` | 124 | 200 | 120 |
+//! | `mahony` | 148 | 248 | 144 |
+//! | `madgwick` | 136 | 224 | 132 |
+//! | `ekf` | 348 | 648 | 344 |
+//! | `sqrt-eskf` | 432 | 816 | 416 |
+//! | `complementary-reconstruction` | 292 | 536 | 286 |
+//! | `heading-pipeline` | 820 | 1448 | 792 |
+//! | `lsq-fusion` | 1224 | 2168 | 1192 |
+//! | `ecf-ekf` | 1708 | 3296 | 1686 |
+//! | any filter as `AnyFilter<L>` | 1708 | | |
 //!
-//! (A scalar `Mahony<f32>` is 104 bytes, `Ekf<f32>` 312: the per-lane `u64` rejection
-//! counters are the same, the shared parameters are amortised over the lanes.) At 4096
-//! channels of Mahony in `f32x8` that is 1.5 MB of state (376 B each, because of the enum),
-//! which no longer fits in L2; [`throughput`] runs chunk by chunk, each chunk's state staying
-//! in registers for all its samples, so the state size matters for streaming blocks, not
-//! within one.
+//! So a run-time typed Mahony batch would cost 1708 B per channel (the size of the largest
+//! variant, `ecf-ekf`); typed, it costs 148. Of those, 40 B are the five `u64` rejection
+//! counters (exact for any recording length, where an `f32` counter would stop at 2²⁴) and
+//! about 56 B the chunk's masking state and padding sample, amortised over the lanes.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and
 //! array-of-structs input ([`Batch::run_channels`], [`run_recordings`]) is packed into lanes
@@ -69,7 +88,43 @@
 //!
 //! # Throughput
 //! [`throughput`] measures scalar `f32`/`f64` loops, `f32x8`/`f64x4` lanes on one core and
-//! `f32x8` lanes on all cores in one run (the CLI's `rootfuse throughput`).
+//! `f32x8` lanes on all cores in one run (the CLI's `rootfuse throughput`), every mode on the
+//! concrete filter type. A filter update is one long dependency chain per vector (the next
+//! step needs this step's orientation, through square roots, divisions and products), so a
+//! small filter such as Mahony leaves most execution ports idle and runs at the chain's
+//! latency, scalar or vector alike. The lane modes therefore run small filters (state within
+//! [`INTERLEAVE_STATE_BYTES`], see [`interleaves`]) as [`X2<L>`](rootfuse_lane::X2): two
+//! chunks of `f32x8` (or `f64x4`) side by side in every instruction, two independent chains
+//! sharing one latency. The arithmetic is the same `f32x8` arithmetic, lane for lane, so
+//! results are unchanged (tested for every filter); the large filters (EKFs, flagship) are
+//! bound by arithmetic and registers already and run as one vector. Use `Batch<X2<f32x8>>`
+//! for the same effect in your own batches.
+//!
+//! ## Throughput against the number of channels
+//! The plot is `docs/throughput-channels.png` in the repository, made by
+//! `rootfuse throughput --filter mahony --dof 6 --sweep --plot docs/throughput-channels.png`
+//! (Mahony 6D in `X2<f32x8>` on one core, about 0.5 s per point, best of 3; the dashed lines
+//! mark where the channels' filter state fills L1d and L2, read from
+//! `/sys/devices/system/cpu/cpu0/cache`). Two orders:
+//! - **Chunk by chunk** (offline, whole recordings; [`Order::ChunkMajor`]): each chunk runs
+//!   all its samples before the next, its state stays in registers, and the channel count
+//!   does not matter: flat at about 2.1e8 channel-updates/s from 64 channels to 1e6. Below
+//!   16 channels the one chunk is partly empty (8 channels fill half of a 16-lane `X2`
+//!   chunk, so half the work is padding: 1.0e8).
+//! - **Tick by tick** (real-time streaming of many sensors, one sample for every channel, then
+//!   the next; [`Order::Tick`]): each chunk's filter state (94 B per channel for Mahony in `X2<f32x8>`,
+//!   40 B of it the rejection counters) is loaded and stored once per sample. The input pool is the same
+//!   1.3 MB either way. Measured (one sweep): within L1d (48 KiB on this machine, about 500
+//!   channels) a tick costs 7–12 % more than chunk by chunk (the loads, stores and loop per
+//!   sample); within L2 (2 MiB, about 22 000 channels) 15–25 %, the hardware prefetcher
+//!   streaming the state in its sequential order; past L2 the state and the input pool
+//!   compete for L2 and the state comes from L3 (260 MiB, shared, so even the 92 MiB of 1e6
+//!   Mahony channels fit): −23 % at 262 144 channels, and at 1e6 channels a tick runs at 0.4
+//!   of chunk by chunk (8.5e7/s), the cost of moving the state in and out every sample.
+//!   Beyond L3 it would be bound by memory bandwidth. Streaming applications should therefore
+//!   feed blocks of several samples per channel ([`Batch::run_soa`] and
+//!   [`Batch::run_channels`] take any number of steps per call) to get the chunk-by-chunk
+//!   rate.
 //!
 //! [`Lane::LANES`]: rootfuse_lane::Lane::LANES
 //! [`FilterSpec`]: rootfuse_attitude::registry::FilterSpec
@@ -82,16 +137,22 @@ mod throughput;
 /// The rayon this crate spreads chunks with (configure its pools, e.g. the thread count).
 pub use rayon;
 
-pub use batch::{Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, pad_sample};
+pub use batch::{
+    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, pad_sample,
+};
 pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
     run_sources_with,
 };
-pub use throughput::{ModeResult, ThroughputReport, throughput};
+pub use throughput::{
+    INTERLEAVE_STATE_BYTES, ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, interleaves,
+    sweep, throughput,
+};
 
-/// State bytes per channel of a batch over lanes `L`: `size_of::<AnyFilter<L>>() / LANES`
-/// (the chunk's masking bookkeeping adds `size_of::<L::Counts>() / LANES + 2 × 8` bytes of
-/// `u64` counters and bits, plus a padding sample of `10 × size_of::<L>() / LANES`).
+/// State bytes per channel of a run-time typed batch over lanes `L` (`Batch<L>`, chunks of
+/// `AnyFilter<L>`): `size_of::<AnyFilter<L>>() / LANES`, the largest registered filter. A batch
+/// of a concrete filter type costs less: see [`Batch::state_bytes_per_channel`] (which also
+/// counts the chunk's masking bookkeeping) and the table in the crate docs.
 pub fn state_bytes_per_channel<L: rootfuse_lane::Lane>() -> usize {
     core::mem::size_of::<rootfuse_attitude::registry::AnyFilter<L>>() / L::LANES
 }

@@ -2,8 +2,8 @@
 
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use rayon::prelude::*;
-use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_attitude::{Lane, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
+use rootfuse_attitude::{Lane, Quat, Recording, Vec3};
 use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// Arithmetic precision of a batch run.
@@ -78,7 +78,7 @@ pub struct ChannelOutput {
     pub bias: Vec<Vec3<f64>>,
     /// Attitude-error covariance after each sample, rad², as its upper triangle
     /// `[xx, xy, xz, yy, yz, zz]` in the convention of
-    /// [`OrientationFilter::attitude_covariance`] (earth frame, ENU: `zz` is heading). Empty
+    /// [`OrientationFilter::attitude_covariance`](rootfuse_attitude::OrientationFilter::attitude_covariance) (earth frame, ENU: `zz` is heading). Empty
     /// when not collected or when the filter carries none.
     pub covariance: Vec<[f64; 6]>,
     /// Per sample, the [`flag`] bits of what the filter skipped at that sample (empty when
@@ -162,7 +162,30 @@ pub fn run_sources_with<L: Lane, S: ChannelSource>(
     sources: &[S],
     columns: Columns,
 ) -> Vec<ChannelOutput> {
-    let mut batch = Batch::<L>::new(spec, sources.len());
+    // One dispatch to the concrete filter type: chunks hold only that filter's state and
+    // nothing is matched per sample.
+    spec.visit::<L, _>(RunSources { sources, columns })
+}
+
+struct RunSources<'a, S> {
+    sources: &'a [S],
+    columns: Columns,
+}
+
+impl<L: Lane, S: ChannelSource> FilterVisitor<L> for RunSources<'_, S> {
+    type Output = Vec<ChannelOutput>;
+    fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) -> Vec<ChannelOutput> {
+        run_typed::<L, F, S>(spec, self.sources, self.columns)
+    }
+}
+
+fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
+    spec: &FilterSpec,
+    sources: &[S],
+    columns: Columns,
+) -> Vec<ChannelOutput> {
+    let mut batch = Batch::<L, F>::try_new(spec, sources.len())
+        .expect("FilterSpec::visit hands over the spec's own filter type, which builds it");
     let capacity = |on: bool, len: usize| if on { len } else { 0 };
     let mut out: Vec<ChannelOutput> = sources
         .iter()

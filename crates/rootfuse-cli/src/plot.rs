@@ -316,3 +316,109 @@ where
     root.present()?;
     Ok(())
 }
+
+/// One measured line of [`throughput_sweep`]: a label and `(channels, channel-updates/s)`.
+pub struct SweepLine {
+    /// Legend text.
+    pub label: String,
+    /// Points, channels ascending.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Throughput against the number of channels (both axes logarithmic), with a vertical
+/// marker where the channels' state fills each cache level (`(name, channels)`). Written to
+/// `path` as PNG or SVG by its extension.
+pub fn throughput_sweep(
+    path: &Path,
+    title: &str,
+    lines: &[SweepLine],
+    caches: &[(String, f64)],
+) -> Result<(), String> {
+    fonts()?;
+    let all = || lines.iter().flat_map(|l| &l.points);
+    let x_min = all().map(|p| p.0).fold(f64::INFINITY, f64::min).max(1.0) / 1.5;
+    let x_max = all().map(|p| p.0).fold(1.0, f64::max) * 1.5;
+    let y_max = finite_max(all().map(|p| &p.1)) * 2.0;
+    let y_min = all()
+        .map(|p| p.1)
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold(f64::INFINITY, f64::min)
+        .min(y_max / 4.0)
+        / 2.0;
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let range = (x_min, x_max, y_min, y_max);
+    let drawn = if svg {
+        let root = SVGBackend::new(path, SIZE).into_drawing_area();
+        draw_sweep(root, title, range, lines, caches)
+    } else {
+        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+        draw_sweep(root, title, range, lines, caches)
+    };
+    drawn.map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn draw_sweep<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    (x_min, x_max, y_min, y_max): (f64, f64, f64, f64),
+    lines: &[SweepLine],
+    caches: &[(String, f64)],
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let mut chart = titled(&root, title, 72)
+        .build_cartesian_2d((x_min..x_max).log_scale(), (y_min..y_max).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("channels")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_desc("channel-updates per second")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    for (i, (name, at)) in caches.iter().enumerate() {
+        if *at < x_min || *at > x_max {
+            continue;
+        }
+        let grey = RGBColor(150, 150, 150);
+        chart.draw_series(DashedLineSeries::new(
+            vec![(*at, y_min), (*at, y_max)],
+            4,
+            4,
+            grey.stroke_width(1),
+        ))?;
+        // Labels alternate in height so neighbouring markers stay readable.
+        let y = y_min * (y_max / y_min).powf(if i % 2 == 0 { 0.08 } else { 0.16 });
+        chart.draw_series(std::iter::once(Text::new(
+            name.clone(),
+            (*at * 1.08, y),
+            ("sans-serif", 14).into_font().color(&grey),
+        )))?;
+    }
+    for (i, line) in lines.iter().enumerate() {
+        let color = palette(i);
+        let style = color.stroke_width(2);
+        chart
+            .draw_series(LineSeries::new(line.points.clone(), style))?
+            .label(line.label.clone())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart.draw_series(
+            line.points
+                .iter()
+                .map(|&p| Circle::new(p, 3, color.filled())),
+        )?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

@@ -32,7 +32,9 @@ extern crate std;
 mod impls;
 mod lane;
 pub mod mat;
+mod x2;
 
 pub use lane::{Counts, Lane, Mask};
 pub use mat::{Mat, Vector};
 pub use wide;
+pub use x2::X2;

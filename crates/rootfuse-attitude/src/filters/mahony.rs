@@ -1,8 +1,6 @@
 //! Mahony's explicit complementary filter [`mahony`].
 
-use super::{
-    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params, up,
-};
+use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params};
 use crate::blocks::{integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -41,7 +39,11 @@ pub struct Mahony<T: Lane> {
     kp: T,
     ki: T,
     max_bias: T,
-    bias_gate: T,
+    /// `max_bias²`: the anti-windup test compares squared norms too.
+    max_bias2: T,
+    /// `bias_gate²`: the gate compares squared norms (no square root on the update's
+    /// dependency chain).
+    bias_gate2: T,
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
@@ -57,7 +59,8 @@ impl<T: Lane> Mahony<T> {
             kp: T::from_f64(p.kp),
             ki: T::from_f64(p.ki),
             max_bias: T::from_f64(p.max_bias),
-            bias_gate: T::from_f64(p.bias_gate),
+            max_bias2: T::from_f64(p.max_bias * p.max_bias),
+            bias_gate2: T::from_f64(p.bias_gate * p.bias_gate),
             nine_d: nine_d(p.dof),
             limits: ScreenLimits::default(),
             rejections: Rejections::default(),
@@ -70,7 +73,7 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
-        let v_hat = q.rotate_inverse(up());
+        let v_hat = q.up_in_sensor();
         let e_acc = Vec3::select(s.acc_ok, s.acc.cross(v_hat), Vec3::zero());
         // 6D is the same for every lane and discards this term: skipping it changes no bits.
         let e_mag = if self.nine_d {
@@ -81,13 +84,26 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         };
         let e = e_acc + e_mag;
 
-        let learn = e.norm().simd_lt(self.bias_gate);
-        let bias = Vec3::select(learn, self.bias - e * (self.ki * s.dt), self.bias);
+        let learn = e.norm_squared().simd_lt(self.bias_gate2);
+        let learned = self.bias - e * (self.ki * s.dt);
+        // A uniform branch, predicted, takes the gate's comparison off the dependency chain;
+        // every lane gets what the select would give it.
+        let bias = if learn.all() {
+            learned
+        } else {
+            Vec3::select(learn, learned, self.bias)
+        };
         // Anti-windup: scale the bias back onto the ball of radius max_bias. Inside the ball
         // the bias is kept as it is: `max_bias / max_bias` would be 0/0 with `max_bias = 0`.
-        let n = bias.norm();
-        let outside = n.simd_gt(self.max_bias);
-        let bias = Vec3::select(outside, bias * (self.max_bias / n), bias);
+        let outside = bias.norm_squared().simd_gt(self.max_bias2);
+        // Uniform across lanes and off the dependency chain once predicted: the square root
+        // and division are skipped when no lane needs them (the select would keep `bias` in
+        // every lane anyway).
+        let bias = if outside.any() {
+            Vec3::select(outside, bias * (self.max_bias / bias.norm()), bias)
+        } else {
+            bias
+        };
         let omega = s.gyr - bias + e * self.kp;
         let q_new = integrate_gyro(q, omega, s.dt);
 

@@ -66,6 +66,7 @@ pub trait OrientationFilter<T: Lane> {
 /// Shared initialisation: where a lane is not yet initialised and this sample has a usable
 /// accelerometer, the orientation is taken from the sample (gravity, and the magnetometer
 /// when `nine_d` and usable); elsewhere `q` is returned unchanged.
+#[inline]
 pub(crate) fn initialise<T: Lane>(
     q: Quat<T>,
     initialized: &mut T::Mask,

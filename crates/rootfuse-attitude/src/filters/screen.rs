@@ -74,11 +74,25 @@ pub struct Screened<T: Lane> {
 
 impl<T: Lane> Screened<T> {
     /// Screens `sample` and counts the rejections.
+    #[inline]
     pub fn new(
         sample: &ImuSample<T>,
         dt: T,
         limits: &ScreenLimits,
         counts: &mut Rejections<T>,
+    ) -> Self {
+        Self::screen(sample, dt, limits, counts, true)
+    }
+
+    /// The screening; `with_mag` false (the same for every lane) leaves the magnetometer
+    /// unusable without looking at it, which is what 6D operation discards anyway.
+    #[inline]
+    fn screen(
+        sample: &ImuSample<T>,
+        dt: T,
+        limits: &ScreenLimits,
+        counts: &mut Rejections<T>,
+        with_mag: bool,
     ) -> Self {
         let zero = T::zero();
         let dt_ok = dt.simd_gt(zero) & dt.simd_le(T::from_f64(limits.max_dt));
@@ -91,11 +105,20 @@ impl<T: Lane> Screened<T> {
         let (acc, acc_unit_ok) = sample.acc.try_normalize();
         let acc_ok = acc_unit_ok & step;
         T::count(&mut counts.acc, step & !acc_unit_ok);
-        let (mag, mag_unit_ok) = sample.mag.try_normalize();
-        let mag_ok = mag_unit_ok & step;
 
         let up = Vec3::new(zero, zero, T::one());
         let north = Vec3::new(zero, T::one(), zero);
+        let (mag_ok, mag, mag_norm) = if with_mag {
+            let (mag, mag_unit_ok) = sample.mag.try_normalize();
+            let mag_ok = mag_unit_ok & step;
+            (
+                mag_ok,
+                Vec3::select(mag_ok, mag, north),
+                T::select(mag_ok, sample.mag.norm(), zero),
+            )
+        } else {
+            (<T::Mask as Mask>::splat(false), north, zero)
+        };
         Self {
             step,
             gyr: Vec3::select(step, sample.gyr, Vec3::zero()),
@@ -104,13 +127,14 @@ impl<T: Lane> Screened<T> {
             acc: Vec3::select(acc_ok, acc, up),
             acc_norm: T::select(acc_ok, sample.acc.norm(), zero),
             mag_ok,
-            mag: Vec3::select(mag_ok, mag, north),
-            mag_norm: T::select(mag_ok, sample.mag.norm(), zero),
+            mag,
+            mag_norm,
         }
     }
 
     /// Screens `sample` for a filter running in 9D (`nine_d`: an unusable magnetometer is
-    /// counted) or 6D (the magnetometer is ignored, uncounted).
+    /// counted) or 6D (the magnetometer is ignored, uncounted: it is not even normalised).
+    #[inline]
     pub fn for_dof(
         sample: &ImuSample<T>,
         dt: T,
@@ -118,13 +142,11 @@ impl<T: Lane> Screened<T> {
         counts: &mut Rejections<T>,
         nine_d: bool,
     ) -> Self {
-        let s = Self::new(sample, dt, limits, counts);
+        let s = Self::screen(sample, dt, limits, counts, nine_d);
         if nine_d {
             s.count_mag(counts);
-            s
-        } else {
-            s.without_mag()
         }
+        s
     }
 
     /// Marks the magnetometer unusable (6D operation) without counting it.
