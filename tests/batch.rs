@@ -4,7 +4,7 @@
 use crate::common::same_bits;
 use rootfuse::batch::{
     Batch, Channel, ChannelOutput, Columns, Precision, RejectionTotals, flag, run_recordings,
-    run_recordings_with, state_bytes_per_channel,
+    run_recordings_with, state_bytes_per_channel, status_flags,
 };
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::sim::{scenario, scenario_names};
@@ -356,7 +356,8 @@ fn covariance_and_flags_equal_scalar_runs() {
                         | grew(&r.gyr, &before.gyr, flag::GYR)
                         | grew(&r.acc, &before.acc, flag::ACC)
                         | grew(&r.mag, &before.mag, flag::MAG)
-                        | grew(&r.gated, &before.gated, flag::GATED);
+                        | grew(&r.gated, &before.gated, flag::GATED)
+                        | status_flags(&f, 0);
                     assert_eq!(o.flags[k], expected, "{what}: flags at {k}");
                     before = *r;
                     match f.attitude_covariance() {

@@ -142,6 +142,14 @@ macro_rules! registry {
             fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
                 match self { $(Self::$variant(f) => OrientationFilter::attitude_covariance(f),)* }
             }
+            #[inline]
+            fn rest_detected(&self) -> Option<T::Mask> {
+                match self { $(Self::$variant(f) => f.rest_detected(),)* }
+            }
+            #[inline]
+            fn magnetic_disturbance(&self) -> Option<T::Mask> {
+                match self { $(Self::$variant(f) => f.magnetic_disturbance(),)* }
+            }
         }
 
         impl<T: Lane> FromSpec<T> for AnyFilter<T> {

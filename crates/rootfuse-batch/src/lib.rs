@@ -142,7 +142,7 @@ pub use batch::{
 };
 pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
-    run_sources_with,
+    run_sources_with, status_flags,
 };
 pub use throughput::{
     INTERLEAVE_STATE_BYTES, ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, interleaves,

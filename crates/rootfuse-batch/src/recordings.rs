@@ -3,7 +3,7 @@
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-use rootfuse_attitude::{Lane, Quat, Recording, Vec3};
+use rootfuse_attitude::{Lane, Mask, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// Arithmetic precision of a batch run.
@@ -38,7 +38,9 @@ impl Default for Columns {
     }
 }
 
-/// Bits of [`ChannelOutput::flags`]: which counter of [`RejectionTotals`] the sample raised.
+/// Bits of [`ChannelOutput::flags`]: which counter of [`RejectionTotals`] the sample raised
+/// (1–16), and the filter's detector states after the sample (32, 64; filters that have them,
+/// see [`OrientationFilter::rest_detected`](rootfuse_attitude::OrientationFilter::rest_detected)).
 pub mod flag {
     /// The whole sample was skipped: `dt` unusable.
     pub const DT: u8 = 1;
@@ -50,6 +52,21 @@ pub mod flag {
     pub const MAG: u8 = 8;
     /// A correction was skipped by the filter's own gate.
     pub const GATED: u8 = 16;
+    /// Status, not a skip: the filter detects the sensor at rest (gyro bias learned).
+    pub const REST: u8 = 32;
+    /// Status: the magnetometer sample was rejected as a disturbed field (also counted as
+    /// [`GATED`]).
+    pub const MAG_DISTURBED: u8 = 64;
+}
+
+/// The status bits ([`flag::REST`], [`flag::MAG_DISTURBED`]) of `filter` in `lane`.
+pub fn status_flags<L: Lane, F: OrientationFilter<L>>(filter: &F, lane: usize) -> u8 {
+    let bit = |m: Option<L::Mask>, b: u8| match m {
+        Some(m) if (m.bitmask() >> lane) & 1 == 1 => b,
+        _ => 0,
+    };
+    bit(filter.rest_detected(), flag::REST)
+        | bit(filter.magnetic_disturbance(), flag::MAG_DISTURBED)
 }
 
 impl RejectionTotals {
@@ -240,7 +257,8 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
                     }
                     if columns.flags {
                         let now = chunk.rejections(i);
-                        o.flags.push(now.flags_since(&counted[i]));
+                        o.flags
+                            .push(now.flags_since(&counted[i]) | status_flags(filter, i));
                         counted[i] = now;
                     }
                 }

@@ -41,7 +41,8 @@ pub struct RunArgs {
     covariance: bool,
     /// Also write a `flags` column: per sample, the sum of 1 (dt skipped), 2 (gyroscope
     /// skipped), 4 (accelerometer correction skipped), 8 (magnetometer correction skipped),
-    /// 16 (a correction gated).
+    /// 16 (a correction gated), and the detector states 32 (at rest) and 64 (magnetic field
+    /// disturbed) for filters that detect them (`sqrt-eskf`).
     #[arg(long)]
     flags: bool,
     /// Offline: smooth each file forward-backward (two runs fused by their attitude

@@ -364,3 +364,39 @@ fn run_offline_smooths() {
         assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
     }
 }
+
+/// `--flags` carries the flagship's detector states: 32 while at rest (most of a long-rest
+/// recording), 64 where the field is disturbed; filters without detectors never set them.
+#[test]
+fn run_flags_carry_rest_and_disturbance() {
+    let dir = temp_dir("status");
+    let column = |scenario_name: &str, filter: &str| -> Vec<u8> {
+        let rec = scenario(scenario_name, 2, 40.0, 100.0).unwrap();
+        let input = dir.join(format!("{scenario_name}.csv"));
+        write_recording(&input, &rec).unwrap();
+        let out = dir.join(filter);
+        let (i, o) = (input.display().to_string(), out.display().to_string());
+        let r = run(&["run", &i, "--out", &o, "--filter", filter, "--flags"]);
+        assert!(r.status.success(), "{}", text(&r).1);
+        let written = std::fs::read_to_string(out.join(format!("{scenario_name}.csv"))).unwrap();
+        written
+            .lines()
+            .skip(1)
+            .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
+            .collect()
+    };
+    let rest = column("long-rest", "flagship");
+    let at_rest = rest.iter().filter(|&&f| f & 32 != 0).count();
+    assert!(
+        at_rest * 2 > rest.len(),
+        "at rest on {at_rest} of {} samples",
+        rest.len()
+    );
+    let magnet = column("magnetic-disturbance", "flagship");
+    assert!(
+        magnet.iter().any(|&f| f & 64 != 0),
+        "no disturbance flagged"
+    );
+    let mahony = column("long-rest", "mahony");
+    assert!(mahony.iter().all(|&f| f & (32 | 64) == 0));
+}

@@ -784,4 +784,10 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
         Some(SqrtEskf::attitude_covariance(self))
     }
+    fn rest_detected(&self) -> Option<T::Mask> {
+        Some(self.at_rest())
+    }
+    fn magnetic_disturbance(&self) -> Option<T::Mask> {
+        Some(self.mag_disturbed())
+    }
 }

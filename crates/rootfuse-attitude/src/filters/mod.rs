@@ -61,6 +61,16 @@ pub trait OrientationFilter<T: Lane> {
     fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
         None
     }
+    /// Per lane: the sensor is detected at rest now, for filters with rest detection (`None`
+    /// otherwise; the answer is the same for every lane).
+    fn rest_detected(&self) -> Option<T::Mask> {
+        None
+    }
+    /// Per lane: the last magnetometer sample was rejected as a disturbed field, for filters
+    /// with magnetic-disturbance detection (`None` otherwise).
+    fn magnetic_disturbance(&self) -> Option<T::Mask> {
+        None
+    }
 }
 
 /// Shared initialisation: where a lane is not yet initialised and this sample has a usable
