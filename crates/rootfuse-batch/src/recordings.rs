@@ -142,7 +142,7 @@ pub fn run_recordings(
 /// ```
 /// use rootfuse_attitude::registry::FilterSpec;
 /// use rootfuse_attitude::sim::scenario;
-/// use rootfuse_batch::{Columns, Precision, run_recordings_with};
+/// use rootfuse_batch::{Columns, Precision, flag, run_recordings_with};
 ///
 /// let spec = FilterSpec::new("sqrt-eskf").unwrap();
 /// let recs = vec![scenario("static", 1, 2.0, 100.0).unwrap()];
@@ -151,7 +151,9 @@ pub fn run_recordings(
 /// assert!(out[0].bias.is_empty());
 /// assert_eq!(out[0].covariance.len(), recs[0].len());
 /// assert!(out[0].covariance.iter().all(|p| p[0] > 0.0 && p[3] > 0.0 && p[5] > 0.0));
-/// assert!(out[0].flags.iter().all(|&f| f == 0));
+/// // Nothing skipped; the sensor of the "static" scenario is detected at rest in the end.
+/// assert!(out[0].flags.iter().all(|&f| f & (flag::REST - 1) == 0));
+/// assert!(out[0].flags.last().is_some_and(|&f| f & flag::REST != 0));
 /// ```
 pub fn run_recordings_with(
     spec: &FilterSpec,
