@@ -203,8 +203,10 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
     sources: &[S],
     columns: Columns,
 ) -> Vec<ChannelOutput> {
+    // Unreachable: `try_new` fails only when `F` is not the spec's filter type, and
+    // `FilterSpec::visit` calls this with exactly that type (`F::from_spec(spec)` is `Some`).
     let mut batch = Batch::<L, F>::try_new(spec, sources.len())
-        .expect("FilterSpec::visit hands over the spec's own filter type, which builds it");
+        .expect("unreachable: FilterSpec::visit hands over the spec's own filter type");
     let capacity = |on: bool, len: usize| if on { len } else { 0 };
     let mut out: Vec<ChannelOutput> = sources
         .iter()
