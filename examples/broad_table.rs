@@ -5,32 +5,11 @@
 //! cargo run --release --example broad_table -- mahony kp=0.8 ki=0.01 # one filter, overrides
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
-use rootfuse::attitude::io::read_csv;
+use rootfuse::attitude::Recording;
+use rootfuse::attitude::io::read_dir;
 use rootfuse::attitude::metrics::{Alignment, evaluate};
 use rootfuse::attitude::registry::{FilterKind, FilterSpec};
-use rootfuse::attitude::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
 use std::path::PathBuf;
-
-fn run<T: rootfuse::Lane>(
-    spec: &FilterSpec,
-    rec: &Recording,
-    conv: impl Fn(f64) -> T,
-    back: impl Fn(T) -> f64,
-) -> Vec<Quat<f64>> {
-    let mut f = spec.build::<T>();
-    let v = |x: Vec3<f64>| Vec3::new(conv(x.x), conv(x.y), conv(x.z));
-    (0..rec.len())
-        .map(|i| {
-            let s = rec.sample(i);
-            f.update(
-                &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
-                conv(rec.dt(i)),
-            );
-            let q = f.quat();
-            Quat::new(back(q.w), back(q.x), back(q.y), back(q.z))
-        })
-        .collect()
-}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::var_os("ROOTFUSE_BROAD_DIR")
@@ -47,12 +26,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|n| FilterKind::from_name(n))
             .collect::<Result<_, _>>()?
     };
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "csv") && !p.ends_with("index.csv"))
-        .collect();
-    files.sort();
-    let recs: Vec<Recording> = files.iter().map(read_csv).collect::<Result<_, _>>()?;
+    let recs: Vec<Recording> = read_dir(&dir)?;
     println!(
         "| filter | dof | precision | {} | mean |",
         recs.iter()
@@ -78,9 +52,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut sum = [0.0; 3];
                 for rec in &recs {
                     let est = if precision == "f64" {
-                        run::<f64>(&spec, rec, |x| x, |x| x)
+                        rec.estimate(&mut spec.build::<f64>())
                     } else {
-                        run::<f32>(&spec, rec, |x| x as f32, |x| x as f64)
+                        rec.estimate(&mut spec.build::<f32>())
                     };
                     let r = evaluate(rec, &est, align)?;
                     sum[0] += r.total;

@@ -13,7 +13,7 @@
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
 use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
-use rootfuse::attitude::io::read_csv;
+use rootfuse::attitude::io::read_dir;
 use rootfuse::attitude::metrics::{Alignment, evaluate};
 use rootfuse::attitude::smooth::forward_backward;
 use rootfuse::attitude::{ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
@@ -135,12 +135,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::var_os("ROOTFUSE_BROAD_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/broad_csv"));
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "csv") && !p.ends_with("index.csv"))
-        .collect();
-    files.sort();
-    let recs: Vec<Recording> = files.iter().map(read_csv).collect::<Result<_, _>>()?;
+    let recs: Vec<Recording> = read_dir(&dir)?;
 
     let mut p = SqrtEskfParams::default();
     let mut f32 = false;

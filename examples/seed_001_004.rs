@@ -10,17 +10,6 @@ use rootfuse::attitude::metrics::euler_rmse;
 use rootfuse::attitude::registry::FilterSpec;
 use rootfuse::attitude::{ImuSample, OrientationFilter, Quat, Recording, sim};
 
-fn run(spec: &FilterSpec, rec: &Recording) -> Vec<Quat<f64>> {
-    let mut f = spec.build::<f64>();
-    (0..rec.len())
-        .map(|i| {
-            let s = rec.sample(i);
-            f.update(&ImuSample::new(s.gyr, s.acc, s.mag), rec.dt(i));
-            f.quat()
-        })
-        .collect()
-}
-
 /// The wrong-start convergence motion of tests/filters.rs: worst error over the last 10 s.
 fn conv(name: &str, dof: u8) -> f64 {
     use rootfuse::attitude::Vec3;
@@ -106,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 let mut mean = [0.0; 3];
                 for rec in &recs {
-                    let r = euler_rmse(rec, &run(&spec, rec), 2.0, dof == 6);
+                    let r = euler_rmse(rec, &rec.estimate(&mut spec.build::<f64>()), 2.0, dof == 6);
                     for (m, x) in mean.iter_mut().zip(r) {
                         *m += x / recs.len() as f64;
                     }

@@ -42,29 +42,11 @@ const PINNED: [(&str, u8, [[f64; 3]; 4]); 20] = [
 /// The "Madgwick 9D (ahrs pkg)" column of the reference table (total RMSE, degrees).
 const MADGWICK_REFERENCE: [f64; 4] = [1.72, 7.35, 9.62, 4.36];
 
-pub fn run_filter<T: Lane>(
-    spec: &FilterSpec,
-    rec: &Recording,
-    to: impl Fn(f64) -> T,
-    from: impl Fn(T) -> f64,
-) -> Vec<Quat<f64>> {
-    let mut f = spec.build::<T>();
-    let v = |x: Vec3<f64>| Vec3::new(to(x.x), to(x.y), to(x.z));
-    (0..rec.len())
-        .map(|i| {
-            let s = rec.sample(i);
-            f.update(&ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)), to(rec.dt(i)));
-            let q = f.quat();
-            Quat::new(from(q.w), from(q.x), from(q.y), from(q.z))
-        })
-        .collect()
-}
-
 fn rmse(spec: &FilterSpec, rec: &Recording, dof: u8, f32_lanes: bool) -> Rmse {
     let est = if f32_lanes {
-        run_filter::<f32>(spec, rec, |x| x as f32, |x| x as f64)
+        rec.estimate(&mut spec.build::<f32>())
     } else {
-        run_filter::<f64>(spec, rec, |x| x, |x| x)
+        rec.estimate(&mut spec.build::<f64>())
     };
     let align = if dof == 9 {
         Alignment::NineD

@@ -15,27 +15,13 @@ fn params(dof: f64) -> SqrtEskfParams {
 }
 
 /// Runs the filter over a recording; returns the estimates and the filter.
-fn run<T: Lane>(
-    rec: &Recording,
-    dof: f64,
-    to: impl Fn(f64) -> T,
-    from: impl Fn(T) -> f64,
-) -> (Vec<Quat<f64>>, SqrtEskf<T>) {
+fn run<T: Lane>(rec: &Recording, dof: f64) -> (Vec<Quat<f64>>, SqrtEskf<T>) {
     let mut f = SqrtEskf::<T>::new(&params(dof));
-    let v = |x: Vec3<f64>| Vec3::new(to(x.x), to(x.y), to(x.z));
-    let est = (0..rec.len())
-        .map(|i| {
-            let s = rec.sample(i);
-            f.update(&ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)), to(rec.dt(i)));
-            let q = f.quat();
-            Quat::new(from(q.w), from(q.x), from(q.y), from(q.z))
-        })
-        .collect();
-    (est, f)
+    (rec.estimate(&mut f), f)
 }
 
 fn rmse64(rec: &Recording, dof: f64) -> (f64, f64) {
-    let (est, _) = run::<f64>(rec, dof, |x| x, |x| x);
+    let (est, _) = run::<f64>(rec, dof);
     let align = if dof > 7.5 {
         Alignment::NineD
     } else {
@@ -130,8 +116,8 @@ fn rest_is_detected_and_bias_learned() {
 fn f32_agrees_with_f64() {
     let rec = scenario("slow-rotation", 4, 120.0, 100.0).unwrap();
     for dof in [6.0, 9.0] {
-        let (a, fa) = run::<f64>(&rec, dof, |x| x, |x| x);
-        let (b, fb) = run::<f32>(&rec, dof, |x| x as f32, |x| x as f64);
+        let (a, fa) = run::<f64>(&rec, dof);
+        let (b, fb) = run::<f32>(&rec, dof);
         let mut diff: Vec<f64> = a
             .iter()
             .zip(&b)

@@ -1,7 +1,6 @@
 //! Seed 000, LS quaternion fusion (`lsq-fusion`): the denoiser against closed forms, drift
 //! recovery, no vertical windup, and the measured comparison with `complementary`
 //! (/work/notes/seed000.md has the full tables).
-use crate::broad::run_filter;
 use crate::common::broad_dir;
 use nalgebra::Matrix3;
 use rootfuse_attitude::filters::{LsqFusion, LsqFusionParams, PolyDenoiser};
@@ -204,7 +203,7 @@ fn mean_rmse(name: &str, dof: u8, recs: &[Recording]) -> f64 {
     };
     recs.iter()
         .map(|r| {
-            evaluate(r, &run_filter::<f64>(&spec, r, |x| x, |x| x), align)
+            evaluate(r, &r.estimate(&mut spec.build::<f64>()), align)
                 .unwrap()
                 .total
         })

@@ -7,23 +7,13 @@
 use rootfuse_attitude::filters::{ComplementaryReconstruction, ComplementaryReconstructionParams};
 use rootfuse_attitude::metrics::euler_rmse;
 use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Recording, Vec3, sim};
+use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Vec3, sim};
 
 const G: f64 = 9.81;
 
 fn earth_field() -> Vec3<f64> {
     let dip = 64f64.to_radians();
     Vec3::new(0.0, dip.cos(), -dip.sin()) * 50.0
-}
-
-fn run(f: &mut impl OrientationFilter<f64>, rec: &Recording) -> Vec<Quat<f64>> {
-    (0..rec.len())
-        .map(|i| {
-            let s = rec.sample(i);
-            f.update(&ImuSample::new(s.gyr, s.acc, s.mag), rec.dt(i));
-            f.quat()
-        })
-        .collect()
 }
 
 /// Mean roll/pitch/yaw RMSE (degrees) of `name` with `overrides` over seeds 1..=4.
@@ -36,7 +26,7 @@ fn rpy(scenario: &str, name: &str, overrides: &[&str], dof: u8) -> [f64; 3] {
     let mut mean = [0.0; 3];
     for seed in 1..=4 {
         let rec = sim::scenario(scenario, seed, 60.0, 100.0).unwrap();
-        let est = run(&mut spec.build::<f64>(), &rec);
+        let est = rec.estimate(&mut spec.build::<f64>());
         for (m, x) in mean.iter_mut().zip(euler_rmse(&rec, &est, 2.0, dof == 6)) {
             *m += x / 4.0;
         }

@@ -1,9 +1,11 @@
 //! Whole recordings in `f64`: what the CSV reader and the simulator produce and the metrics
 //! and the CLI consume.
 
+use crate::filters::OrientationFilter;
 use crate::quat::Quat;
 use crate::sample::ImuSample;
 use crate::vec3::Vec3;
+use rootfuse_lane::Lane;
 use std::string::String;
 use std::vec::Vec;
 
@@ -41,6 +43,32 @@ impl Recording {
             Some(mag) => ImuSample::new(self.gyr[i], self.acc[i], mag[i]),
             None => ImuSample::six_d(self.gyr[i], self.acc[i]),
         }
+    }
+    /// Runs `filter` over every sample in order and returns its orientation after each one,
+    /// in `f64`. Samples and steps are converted to `T` (`f32`: rounded once); with a SIMD `T`
+    /// every lane gets the same sample and lane 0 is returned.
+    ///
+    /// ```
+    /// use rootfuse_attitude::filters::{Mahony, MahonyParams};
+    /// use rootfuse_attitude::sim::scenario;
+    ///
+    /// let rec = scenario("static", 1, 1.0, 100.0).unwrap();
+    /// let est = rec.estimate(&mut Mahony::<f32>::new(&MahonyParams::default()));
+    /// assert_eq!(est.len(), rec.len());
+    /// ```
+    pub fn estimate<T: Lane>(&self, filter: &mut impl OrientationFilter<T>) -> Vec<Quat<f64>> {
+        let v = |x: Vec3<f64>| Vec3::<T>::from_f64([x.x, x.y, x.z]);
+        (0..self.len())
+            .map(|i| {
+                let s = self.sample(i);
+                filter.update(
+                    &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
+                    T::from_f64(self.dt(i)),
+                );
+                let q = filter.quat().lane(0);
+                Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into())
+            })
+            .collect()
     }
     /// Time step before sample `i`, s (the first sample uses the second interval).
     pub fn dt(&self, i: usize) -> f64 {

@@ -28,18 +28,22 @@
 //! assert_eq!(out.forward_only, 0);
 //! ```
 
+use crate::filters::Rejections;
+use crate::metrics::{error_heading, error_quat};
 use crate::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mat;
 use std::vec::Vec;
 
 /// The smoothed estimates of a recording.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Smoothed {
     /// Smoothed orientation per sample (sensor to earth, same convention as the filter).
     pub quat: Vec<Quat<f64>>,
     /// Samples where the fusion was not possible (a covariance not finite or not positive
     /// definite, or an estimate not finite) and the forward estimate was kept as it is.
     pub forward_only: usize,
+    /// What the forward run skipped, by reason (the backward run sees the same samples).
+    pub rejections: Rejections<f64>,
 }
 
 /// Why a recording could not be smoothed.
@@ -120,7 +124,11 @@ pub fn forward_backward<F: OrientationFilter<f64>>(
             }
         })
         .collect();
-    Ok(Smoothed { quat, forward_only })
+    Ok(Smoothed {
+        quat,
+        forward_only,
+        rejections: *fwd_filter.rejections(),
+    })
 }
 
 /// `Exp(P_f·(P_f + P_b)⁻¹·δ) ⊗ q_f` with `δ = Log(q_b ⊗ q_f*)`; `None` where it cannot be
@@ -158,8 +166,7 @@ fn heading_offset(forward: &Pass, backward: &Pass) -> f64 {
             (Some(a), Some(b)) => a.m[2][2] + b.m[2][2],
             _ => continue,
         };
-        let e = *qf * qb.conj();
-        let psi = 2.0 * e.z.atan2(e.w);
+        let psi = error_heading(error_quat(*qf, *qb));
         let w = 1.0 / var;
         if psi.is_finite() && w.is_finite() && w > 0.0 {
             s += w * psi.sin();

@@ -180,19 +180,15 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     }
 }
 
-/// Forward-backward smoothing of every recording (f64). The rejection counts are those of
-/// the forward pass (the backward pass sees the same samples).
+/// Forward-backward smoothing of every recording (f64), with the forward pass's rejection
+/// counts.
 fn smooth_recordings(spec: &FilterSpec, recs: &[Recording]) -> Result<Vec<ChannelOutput>, String> {
     let nine_d = spec.get("dof").is_none_or(|d| d > 7.5);
     recs.iter()
         .map(|rec| {
             let smoothed = forward_backward(rec, || spec.build::<f64>(), nine_d)
                 .map_err(|e| format!("{}: {e}", rec.name))?;
-            let mut forward = spec.build::<f64>();
-            for i in 0..rec.len() {
-                forward.update(&rec.sample(i), rec.dt(i));
-            }
-            let r = forward.rejections();
+            let r = &smoothed.rejections;
             Ok(ChannelOutput {
                 quat: smoothed.quat,
                 rejections: RejectionTotals {
