@@ -46,7 +46,7 @@ fn simulator(c: &mut Criterion) {
             let mut seed = 0;
             b.iter(|| {
                 seed += 1;
-                rootfuse::attitude::sim::scenario(name, seed, 10.0, 200.0)
+                rootfuse::eval::sim::scenario(name, seed, 10.0, 200.0)
             })
         });
     }
@@ -104,7 +104,8 @@ fn batch_filters(c: &mut Criterion) {
     }
     for (name, dof) in [("mahony", 6u8), ("ekf", 9)] {
         let mut spec = FilterSpec::new(name).unwrap();
-        spec.set_dof(dof).unwrap();
+        spec.set_dof(rootfuse::attitude::Dof::from_count(dof).expect("6 or 9"))
+            .unwrap();
         let mut group = c.benchmark_group(format!("batch/{name}_{dof}d"));
         bench::<f32>(&mut group, "scalar-f32", &spec);
         bench::<f64>(&mut group, "scalar-f64", &spec);

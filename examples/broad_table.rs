@@ -6,9 +6,9 @@
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
 use rootfuse::attitude::Recording;
-use rootfuse::attitude::io::read_dir;
-use rootfuse::attitude::metrics::{Alignment, evaluate};
 use rootfuse::attitude::registry::{FilterKind, FilterSpec};
+use rootfuse::eval::metrics::{Alignment, evaluate};
+use rootfuse::io::read_dir;
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -38,7 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for kind in kinds {
         for dof in [9u8, 6] {
             let mut spec = FilterSpec::new(kind.name())?;
-            spec.set_dof(dof)?;
+            spec.set_dof(rootfuse::attitude::Dof::from_count(dof).ok_or("dof is 6 or 9")?)?;
             for o in &overrides {
                 spec.set(o)?;
             }

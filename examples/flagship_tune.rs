@@ -13,10 +13,10 @@
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
 use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
-use rootfuse::attitude::io::read_dir;
-use rootfuse::attitude::metrics::{Alignment, evaluate};
 use rootfuse::attitude::smooth::forward_backward;
-use rootfuse::attitude::{ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse::attitude::{Dof, ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse::eval::metrics::{Alignment, evaluate};
+use rootfuse::io::read_dir;
 use std::path::PathBuf;
 
 /// VQF online total RMSE (degrees) on the four trials, 9D then 6D (../shared/broad_csv/README.md).
@@ -64,14 +64,14 @@ fn run<T: rootfuse::Lane>(
 
 /// Offline (forward-backward) total RMSE 9D and 6D, and the 9D inclination RMSE.
 fn smoothed(p: &SqrtEskfParams, rec: &Recording) -> [f64; 3] {
-    let eval = |dof: f64, align| {
+    let eval = |dof: Dof, align| {
         let q = SqrtEskfParams { dof, ..p.clone() };
-        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof > 7.5)
+        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof.uses_magnetometer())
             .expect("sqrt-eskf has a covariance");
         evaluate(rec, &out.quat, align).map_or([f64::NAN; 2], |r| [r.total, r.inclination])
     };
-    let [e9, incl] = eval(9.0, Alignment::NineD);
-    let [e6, _] = eval(6.0, Alignment::SixD);
+    let [e9, incl] = eval(Dof::Nine, Alignment::NineD);
+    let [e6, _] = eval(Dof::Six, Alignment::SixD);
     [e9, e6, incl]
 }
 

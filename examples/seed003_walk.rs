@@ -5,7 +5,7 @@
 //! cargo run --release --example seed003_walk            # seeds 0..10, 6D and 9D
 //! cargo run --release --example seed003_walk -- 20      # seeds 0..20
 //! ```
-use rootfuse::attitude::beacon::sim::{WalkConfig, run_walk};
+use rootfuse::beacon::sim::{WalkConfig, run_walk};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seeds: u64 = std::env::args().nth(1).map_or(Ok(10), |s| s.parse())?;
@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for seed in 0..seeds {
             let cfg = WalkConfig {
                 seed,
-                dof,
+                dof: rootfuse::attitude::Dof::from_count(dof).expect("6 or 9"),
                 position_fixes: fixes,
                 ..WalkConfig::default()
             };

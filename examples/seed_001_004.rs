@@ -6,9 +6,10 @@
 //! cargo run --release --example seed_001_004 -- [seconds] [seeds] filter[:k=v,...] ...
 //! ```
 //! The BROAD numbers come from `examples/broad_table.rs`.
-use rootfuse::attitude::metrics::euler_rmse;
 use rootfuse::attitude::registry::FilterSpec;
-use rootfuse::attitude::{ImuSample, OrientationFilter, Quat, Recording, sim};
+use rootfuse::attitude::{ImuSample, OrientationFilter, Quat, Recording};
+use rootfuse::eval::metrics::euler_rmse;
+use rootfuse::eval::sim;
 
 /// The wrong-start convergence motion of tests/filters.rs: worst error over the last 10 s.
 fn conv(name: &str, dof: u8) -> f64 {
@@ -27,7 +28,8 @@ fn conv(name: &str, dof: u8) -> f64 {
             spec.set(o).unwrap();
         }
     }
-    spec.set_dof(dof).unwrap();
+    spec.set_dof(rootfuse::attitude::Dof::from_count(dof).expect("6 or 9"))
+        .unwrap();
     let mut f = spec.build::<f64>();
     f.update(
         &ImuSample::new(
@@ -89,7 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for f in filters {
                 let (name, overrides) = f.split_once(':').unwrap_or((f, ""));
                 let mut spec = FilterSpec::new(name)?;
-                spec.set_dof(dof)?;
+                spec.set_dof(rootfuse::attitude::Dof::from_count(dof).ok_or("dof is 6 or 9")?)?;
                 for o in overrides.split(',').filter(|o| !o.is_empty()) {
                     spec.set(o)?;
                 }

@@ -20,6 +20,9 @@
 pub use rootfuse_attitude as attitude;
 pub use rootfuse_attitude::{Quat, Vec3};
 pub use rootfuse_batch as batch;
+pub use rootfuse_beacon as beacon;
+pub use rootfuse_eval as eval;
+pub use rootfuse_io as io;
 pub use rootfuse_lane as lane;
 pub use rootfuse_lane::{Lane, Mask, Mat};
 pub use rootfuse_lsq as lsq;

@@ -7,8 +7,8 @@ use rootfuse::batch::{
     run_recordings_with, state_bytes_per_channel, status_flags,
 };
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
-use rootfuse_attitude::sim::{scenario, scenario_names};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_eval::sim::{scenario, scenario_names};
 
 /// One channel alone through the scalar filter, as `run_recordings` promises to reproduce.
 fn scalar_run<S: Lane + Into<f64>>(spec: &FilterSpec, rec: &Recording) -> ChannelOutput {
@@ -102,7 +102,7 @@ fn specs() -> Vec<(FilterSpec, u8)> {
     for &kind in FilterKind::ALL {
         for dof in [6u8, 9] {
             let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
+            spec.set_dof(crate::common::dof(dof)).unwrap();
             out.push((spec, dof));
         }
     }
@@ -338,7 +338,7 @@ fn covariance_and_flags_equal_scalar_runs() {
     for name in ["sqrt-eskf", "ekf", "mahony"] {
         for dof in [6u8, 9] {
             let mut spec = FilterSpec::new(name).unwrap();
-            spec.set_dof(dof).unwrap();
+            spec.set_dof(crate::common::dof(dof)).unwrap();
             let out = run_recordings_with(&spec, &recs, Precision::F64, columns);
             for (c, (rec, o)) in recs.iter().zip(&out).enumerate() {
                 let what = format!("{name} {dof}D channel {c}");
@@ -410,7 +410,8 @@ fn per_channel_specs_equal_scalar_runs() {
             .map(|c| {
                 let mut s = FilterSpec::new(name).unwrap();
                 s.set(&format!("{key}={}", values[c % 3])).unwrap();
-                s.set_dof(if c % 4 == 3 { 6 } else { 9 }).unwrap();
+                s.set_dof(crate::common::dof(if c % 4 == 3 { 6 } else { 9 }))
+                    .unwrap();
                 s
             })
             .collect();

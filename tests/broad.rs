@@ -1,10 +1,10 @@
 //! Every registered filter on the four BROAD trials (6D and 9D, one parameter set): RMSE
 //! pinned so that any change in accuracy, better or worse, is seen and the table updated.
 use crate::common::broad_dir;
-use rootfuse_attitude::io::read_csv;
-use rootfuse_attitude::metrics::{Alignment, Rmse, evaluate};
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_io::read_csv;
 
 const TRIALS: [&str; 4] = [
     "02_undisturbed_slow_rotation_B",
@@ -66,7 +66,7 @@ fn broad_rmse_is_pinned() {
     let mut failures = Vec::new();
     for (name, dof, pinned) in PINNED {
         let mut spec = FilterSpec::new(name).unwrap();
-        spec.set_dof(dof).unwrap();
+        spec.set_dof(crate::common::dof(dof)).unwrap();
         for (k, rec) in recs.iter().enumerate() {
             let r = rmse(&spec, rec, dof, false);
             let got = [r.total, r.heading, r.inclination];
@@ -104,7 +104,7 @@ fn broad_f32_matches_f64() {
     for &kind in FilterKind::ALL {
         for dof in [6u8, 9] {
             let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
+            spec.set_dof(crate::common::dof(dof)).unwrap();
             let (a, b) = (rmse(&spec, &rec, dof, false), rmse(&spec, &rec, dof, true));
             assert!(
                 (a.total - b.total).abs() < 0.5,
@@ -126,7 +126,7 @@ fn broad_f32_matches_f64() {
 fn madgwick_against_reference() {
     let Some(dir) = broad_dir() else { return };
     let mut spec = FilterSpec::new("madgwick").unwrap();
-    spec.set_dof(9).unwrap();
+    spec.set_dof(rootfuse_attitude::Dof::Nine).unwrap();
     for (trial, reference) in TRIALS.iter().zip(MADGWICK_REFERENCE) {
         let rec = read_csv(dir.join(format!("{trial}.csv"))).unwrap();
         let got = rmse(&spec, &rec, 9, false).total;
@@ -216,19 +216,23 @@ fn flagship_offline_beats_vqf_offline() {
     for (k, t) in TRIALS.iter().enumerate() {
         let rec = read_csv(dir.join(format!("{t}.csv"))).unwrap();
         let mut got = [0.0; 2];
-        for (d, (dof, align)) in [(9.0, Alignment::NineD), (6.0, Alignment::SixD)]
-            .into_iter()
-            .enumerate()
+        for (d, (dof, align)) in [
+            (rootfuse_attitude::Dof::Nine, Alignment::NineD),
+            (rootfuse_attitude::Dof::Six, Alignment::SixD),
+        ]
+        .into_iter()
+        .enumerate()
         {
             let p = SqrtEskfParams {
                 dof,
                 ..SqrtEskfParams::default()
             };
-            let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), dof > 7.5).unwrap();
+            let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), dof.uses_magnetometer())
+                .unwrap();
             got[d] = evaluate(&rec, &out.quat, align).expect("truth").total;
             if (got[d] - PINNED_OFFLINE[k][d]).abs() > 0.011 {
                 failures.push(format!(
-                    "{t} {dof}D: {:.3} vs pinned {:.2}",
+                    "{t} {dof}: {:.3} vs pinned {:.2}",
                     got[d], PINNED_OFFLINE[k][d]
                 ));
             }

@@ -77,3 +77,8 @@ pub fn broad_dir() -> Option<std::path::PathBuf> {
         None
     }
 }
+
+/// The [`Dof`](rootfuse_attitude::Dof) of a count (6 or 9) that a test iterates over.
+pub fn dof(n: u8) -> rootfuse_attitude::Dof {
+    rootfuse_attitude::Dof::from_count(n).expect("tests iterate over 6 and 9")
+}

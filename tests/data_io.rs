@@ -1,13 +1,11 @@
 //! The CSV reader and writer (every error kind names file, line and column), the BROAD
 //! metrics on hand-made cases, and the four real BROAD trials.
-use rootfuse_attitude::io::{
+use rootfuse_attitude::{Quat, Recording, Vec3};
+use rootfuse_eval::metrics::{Alignment, MetricsError, error_series, evaluate, rmse, sample_error};
+use rootfuse_io::{
     ReadError, WriteError, list_dir, read_csv, read_dir, read_index, write_estimates,
     write_recording,
 };
-use rootfuse_attitude::metrics::{
-    Alignment, MetricsError, error_series, evaluate, rmse, sample_error,
-};
-use rootfuse_attitude::{Quat, Recording, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -424,7 +422,7 @@ fn writes_estimates_atomically_and_exactly() {
 fn recording_round_trip_through_csv() {
     // A simulated recording with magnetometer, truth and mask written and read back is equal
     // bit for bit (shortest round-trip number formatting).
-    let mut rec = rootfuse_attitude::sim::scenario("irregular-dt", 3, 2.0, 100.0).unwrap();
+    let mut rec = rootfuse_eval::sim::scenario("irregular-dt", 3, 2.0, 100.0).unwrap();
     rec.use_mask.as_mut().unwrap()[5] = false;
     rec.truth.as_mut().unwrap()[7] = Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN);
     let dir = temp_dir("roundtrip");
@@ -722,8 +720,8 @@ fn reads_broad_trials_matching_index() {
 mod no_panic {
     use proptest::prelude::*;
     use rootfuse_attitude::Quat;
-    use rootfuse_attitude::io::read_csv_from;
-    use rootfuse_attitude::metrics::{Alignment, rmse, sample_error};
+    use rootfuse_eval::metrics::{Alignment, rmse, sample_error};
+    use rootfuse_io::read_csv_from;
 
     /// Cells that are valid, invalid, special or structural, so that random rows reach every
     /// branch of the reader.

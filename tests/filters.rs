@@ -82,7 +82,7 @@ fn converges_from_wrong_initial_attitude() {
         }
         for dof in [6u8, 9] {
             let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
+            spec.set_dof(crate::common::dof(dof)).unwrap();
             let est = run(&spec, &samples, Some(first));
             let start = est[0].angle_to(truth[0]).to_degrees();
             assert!(
@@ -166,7 +166,7 @@ proptest! {
         for &kind in FilterKind::ALL {
             for dof in [6u8, 9] {
                 let mut spec = FilterSpec::new(kind.name()).unwrap();
-                spec.set_dof(dof).unwrap();
+                spec.set_dof(crate::common::dof(dof)).unwrap();
                 let mut f64_filter = spec.build::<f64>();
                 let mut f32_filter = spec.build::<f32>();
                 let (mut bad_dt, mut bad_gyr) = (0u64, 0u64);
@@ -301,7 +301,7 @@ fn attitude_covariance_says_what_is_observable() {
         let mut end_heading_var = [0.0; 2];
         for (d, dof) in [6u8, 9].into_iter().enumerate() {
             let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
+            spec.set_dof(crate::common::dof(dof)).unwrap();
             let mut f = spec.build::<f64>();
             let what = format!("{} {dof}D", kind.name());
             for (k, s) in samples.iter().enumerate() {
@@ -353,7 +353,7 @@ fn parameters_at_the_ends_of_their_ranges_stay_finite() {
         for p in kind.params() {
             for (value, dof) in [(p.min, 6u8), (p.min, 9), (p.max, 6), (p.max, 9)] {
                 let mut spec = FilterSpec::new(kind.name()).unwrap();
-                spec.set_dof(dof).unwrap();
+                spec.set_dof(crate::common::dof(dof)).unwrap();
                 spec.set(&format!("{}={value:?}", p.name)).unwrap();
                 let (mut f64_filter, mut f32_filter) = (spec.build::<f64>(), spec.build::<f32>());
                 for (k, s) in good.iter().enumerate() {

@@ -2,14 +2,14 @@
 //! covariance under random (also bad) data in f32, f32 against f64, and its accessors.
 use proptest::prelude::*;
 use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
-use rootfuse_attitude::metrics::{Alignment, evaluate};
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
-use rootfuse_attitude::sim::scenario;
 use rootfuse_attitude::{ImuSample, Lane, Mask, Mat, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_eval::metrics::{Alignment, evaluate};
+use rootfuse_eval::sim::scenario;
 
 fn params(dof: f64) -> SqrtEskfParams {
     SqrtEskfParams {
-        dof,
+        dof: crate::common::dof(dof as u8),
         ..SqrtEskfParams::default()
     }
 }
@@ -96,7 +96,7 @@ fn rest_is_detected_and_bias_learned() {
         "rest {rest} of {}",
         rec.len()
     );
-    let sim = rootfuse_attitude::sim::scenario_simulation("long-rest", 3, 60.0, 100.0)
+    let sim = rootfuse_eval::sim::scenario_simulation("long-rest", 3, 60.0, 100.0)
         .unwrap()
         .run()
         .unwrap();

@@ -1,7 +1,8 @@
 //! Streaming pre-processing: closed forms, sort-based references, NaN hold, lanes = scalars.
 use crate::common::same_bits;
 use proptest::prelude::*;
-use rootfuse_attitude::preprocess::{Hampel, LowPass, MovingMean, MovingMedian, spectrum};
+use rootfuse_attitude::preprocess::{Hampel, LowPass, MovingMean, MovingMedian};
+use rootfuse_eval::spectrum;
 use rootfuse_lane::Lane;
 
 fn sorted_median(w: &[f64]) -> f64 {

@@ -4,11 +4,11 @@
 use crate::common::broad_dir;
 use nalgebra::Matrix3;
 use rootfuse_attitude::filters::{LsqFusion, LsqFusionParams, PolyDenoiser};
-use rootfuse_attitude::io::read_csv;
-use rootfuse_attitude::metrics::{Alignment, evaluate};
 use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_attitude::sim::{self, Segment, Trajectory};
 use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_eval::metrics::{Alignment, evaluate};
+use rootfuse_eval::sim::{self, Segment, Trajectory};
+use rootfuse_io::read_csv;
 
 /// Deterministic standard normal draws (xorshift64* and Box–Muller).
 struct Normal(u64);
@@ -119,7 +119,7 @@ fn denoiser_reduces_white_noise_by_the_closed_form() {
 fn horizontal_drift_is_recovered_and_vertical_does_not_wind_up() {
     let bias = Vec3::new(0.004, -0.003, 0.01);
     let p = LsqFusionParams {
-        dof: 6.0,
+        dof: rootfuse_attitude::Dof::Six,
         ..Default::default()
     };
     let mut f = LsqFusion::<f64>::new(&p);
@@ -164,7 +164,7 @@ fn drift_is_recovered_on_a_simulated_rotation() {
     let truth = *out.gyro_bias.last().unwrap();
     for dof in [6u8, 9] {
         let p = LsqFusionParams {
-            dof: dof as f64,
+            dof: crate::common::dof(dof),
             ..Default::default()
         };
         let mut f = LsqFusion::<f64>::new(&p);
@@ -195,7 +195,7 @@ fn turntable(seed: u64, d: f64, rate: f64) -> Recording {
 
 fn mean_rmse(name: &str, dof: u8, recs: &[Recording]) -> f64 {
     let mut spec = FilterSpec::new(name).unwrap();
-    spec.set_dof(dof).unwrap();
+    spec.set_dof(crate::common::dof(dof)).unwrap();
     let align = if dof == 9 {
         Alignment::NineD
     } else {

@@ -5,9 +5,10 @@
 //! degrees from 2 s on (`metrics::euler_rmse`), the same set-up as
 //! `examples/seed_001_004.rs`. The simulator is deterministic, so the pins are tight (5 %).
 use rootfuse_attitude::filters::{ComplementaryReconstruction, ComplementaryReconstructionParams};
-use rootfuse_attitude::metrics::euler_rmse;
 use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Vec3, sim};
+use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Vec3};
+use rootfuse_eval::metrics::euler_rmse;
+use rootfuse_eval::sim;
 
 const G: f64 = 9.81;
 
@@ -19,7 +20,7 @@ fn earth_field() -> Vec3<f64> {
 /// Mean roll/pitch/yaw RMSE (degrees) of `name` with `overrides` over seeds 1..=4.
 fn rpy(scenario: &str, name: &str, overrides: &[&str], dof: u8) -> [f64; 3] {
     let mut spec = FilterSpec::new(name).unwrap();
-    spec.set_dof(dof).unwrap();
+    spec.set_dof(crate::common::dof(dof)).unwrap();
     for o in overrides {
         spec.set(o).unwrap();
     }

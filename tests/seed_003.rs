@@ -1,18 +1,18 @@
 //! Seed 003: declination, the heading pipeline's circular blend, the beacon model, map,
 //! multilateration and the 10-minute simulated walk (MEMS only vs with beacons).
-use rootfuse_attitude::beacon::fuse::{FusionConfig, HeadingFusion, circular_blend, wrap};
-use rootfuse_attitude::beacon::heading::{
-    BeaconHeading, TrendConfig, direction, multilaterate, weak_heading,
-};
-use rootfuse_attitude::beacon::sim::{WalkConfig, run_walk};
-use rootfuse_attitude::beacon::{
-    Beacon, BeaconError, BeaconMap, BeaconSet, LogDistanceModel, Reading, ScanMean, Scanner,
-};
 use rootfuse_attitude::blocks::{
     magnetic_heading_error, tilt_compensated_heading, true_heading_error,
 };
 use rootfuse_attitude::filters::{HeadingPipeline, HeadingPipelineParams};
 use rootfuse_attitude::{ImuSample, OrientationFilter, Quat, Vec3};
+use rootfuse_beacon::fuse::{FusionConfig, HeadingFusion, circular_blend, wrap};
+use rootfuse_beacon::heading::{
+    BeaconHeading, TrendConfig, direction, multilaterate, weak_heading,
+};
+use rootfuse_beacon::sim::{WalkConfig, run_walk};
+use rootfuse_beacon::{
+    Beacon, BeaconError, BeaconMap, BeaconSet, LogDistanceModel, Reading, ScanMean, Scanner,
+};
 use std::f64::consts::PI;
 
 /// A seeded standard normal source (splitmix64 and Box–Muller): the test needs no RNG crate.
@@ -309,7 +309,7 @@ fn walk_beacons_remove_accumulated_heading_error() {
     for seed in 0..5 {
         let cfg = WalkConfig {
             seed,
-            dof: 6,
+            dof: rootfuse_attitude::Dof::Six,
             ..WalkConfig::default()
         };
         let r = run_walk(&cfg).unwrap();
@@ -335,7 +335,7 @@ fn walk_9d_disturbed_field_is_not_helped_in_heading() {
     for seed in 0..3 {
         let cfg = WalkConfig {
             seed,
-            dof: 9,
+            dof: rootfuse_attitude::Dof::Nine,
             ..WalkConfig::default()
         };
         let r = run_walk(&cfg).unwrap();

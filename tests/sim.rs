@@ -1,10 +1,10 @@
 //! The IMU simulator: determinism, every preset, noise statistics, exact truth (closed forms and
 //! gyro integration), gravity and magnetic field geometry, disturbances, timing, saturation.
-use rootfuse_attitude::sim::{
+use rootfuse_attitude::{Quat, Recording, Vec3};
+use rootfuse_eval::sim::{
     self, BiasStep, EarthField, Frame, InertialSensor, MagDisturbance, Magnetometer, Oscillation,
     Rotation, SCENARIOS, Segment, SensorModel, SimError, Simulation, Timing, Trajectory, Vibration,
 };
-use rootfuse_attitude::{Quat, Recording, Vec3};
 
 const G: f64 = sim::GRAVITY;
 

@@ -1,6 +1,15 @@
-//! Quaternions, conventions, building blocks and orientation filters over [`Lane`].
+//! Quaternions, conventions, building blocks and orientation filters over [`Lane`]: the
+//! numeric core that an embedded user links.
 //!
-//! # Conventions (the whole project; see `METHODS.md`)
+//! Depends on `rootfuse-lane` (the [`Lane`] trait, small matrices), `rootfuse-lsq` (the
+//! recursive least-squares forms behind `lsq-fusion`, `no_std`) and `libm`. Without default
+//! features it is `no_std` and allocation-free: quaternions, vectors, frames, building blocks,
+//! pre-processing and every filter. The `std` feature adds the filter registry (names and
+//! `key=value` parameters), [`Recording`] (a whole recording in memory) and the offline
+//! forward–backward smoother ([`smooth`]); `nalgebra` adds conversions to and from nalgebra's
+//! types. Files live in `rootfuse-io`, metrics and the simulator in `rootfuse-eval`.
+//!
+//! # Conventions (the whole project; see `docs/conventions.md`)
 //! - A quaternion is `q = [w, x, y, z]`, scalar first, Hamilton product (`i·j = k`), unit norm.
 //! - `q` rotates **sensor to earth**: `v_earth = q ⊗ v_sensor ⊗ q*`
 //!   ([`Quat::rotate`]); [`Quat::rotate_inverse`] goes earth to sensor.
@@ -20,16 +29,11 @@
 #[cfg(feature = "std")]
 extern crate std;
 
-#[cfg(feature = "std")]
-pub mod beacon;
 pub mod blocks;
 pub mod filters;
 pub mod frames;
+#[cfg(feature = "nalgebra")]
 mod interop;
-#[cfg(feature = "std")]
-pub mod io;
-#[cfg(feature = "std")]
-pub mod metrics;
 pub mod preprocess;
 pub mod quat;
 #[cfg(feature = "std")]
@@ -38,12 +42,10 @@ pub mod recording;
 pub mod registry;
 pub mod sample;
 #[cfg(feature = "std")]
-pub mod sim;
-#[cfg(feature = "std")]
 pub mod smooth;
 pub mod vec3;
 
-pub use filters::OrientationFilter;
+pub use filters::{Dof, OrientationFilter};
 pub use quat::Quat;
 #[cfg(feature = "std")]
 pub use recording::Recording;

@@ -424,3 +424,10 @@ impl<T: Lane> Sub for Quat<T> {
         Self::new(self.w - o.w, self.x - o.x, self.y - o.y, self.z - o.z)
     }
 }
+
+impl<T: Lane> rootfuse_lane::Select<T::Mask> for Quat<T> {
+    #[inline]
+    fn select(mask: T::Mask, a: &Self, b: &Self) -> Self {
+        Self::select(mask, *a, *b)
+    }
+}

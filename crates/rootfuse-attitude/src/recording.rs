@@ -50,9 +50,17 @@ impl Recording {
     ///
     /// ```
     /// use rootfuse_attitude::filters::{Mahony, MahonyParams};
-    /// use rootfuse_attitude::sim::scenario;
-    ///
-    /// let rec = scenario("static", 1, 1.0, 100.0).unwrap();
+    /// use rootfuse_attitude::{Recording, Vec3};
+    /// // 1 s level and at rest, sampled at 100 Hz, with a magnetometer (9D).
+    /// let n = 100;
+    /// let rec = Recording {
+    ///     name: "rest".into(),
+    ///     t: (0..n).map(|i| i as f64 * 0.01).collect(),
+    ///     gyr: vec![Vec3::zero(); n],
+    ///     acc: vec![Vec3::new(0.0, 0.0, 9.81); n],
+    ///     mag: Some(vec![Vec3::new(0.0, 20.0, -40.0); n]),
+    ///     ..Default::default()
+    /// };
     /// let est = rec.estimate(&mut Mahony::<f32>::new(&MahonyParams::default()));
     /// assert_eq!(est.len(), rec.len());
     /// ```

@@ -3,11 +3,11 @@
 //!
 //! ```
 //! use rootfuse_attitude::registry::FilterSpec;
-//! use rootfuse_attitude::{ImuSample, OrientationFilter, Vec3};
+//! use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Vec3};
 //!
 //! let mut spec = FilterSpec::new("mahony").unwrap();
 //! spec.set("kp=1.0").unwrap();
-//! spec.set_dof(6).unwrap();
+//! spec.set_dof(Dof::Six).unwrap();
 //! assert!(spec.set("kp=abc").is_err());
 //! let mut filter = spec.build::<f32>();
 //! let sample = ImuSample::six_d(Vec3::zero(), Vec3::new(0.0, 0.0, 9.81));
@@ -106,6 +106,9 @@ macro_rules! registry {
             }
             fn get(&self, name: &str) -> Option<f64> {
                 match self { $(Self::$variant(p) => p.get(name),)* }
+            }
+            fn screen_limits(&self) -> ScreenLimits {
+                match self { $(Self::$variant(p) => p.screen_limits(),)* }
             }
         }
 
@@ -257,12 +260,26 @@ impl FilterSpec {
     pub fn set(&mut self, assignment: &str) -> Result<(), RegistryError> {
         Ok(self.params.apply(assignment)?)
     }
-    /// Selects 6D (no magnetometer) or 9D operation, for filters that have a `dof` parameter.
-    pub fn set_dof(&mut self, dof: u8) -> Result<(), RegistryError> {
+    /// Selects 6D (no magnetometer) or 9D operation, for filters that have a `dof` parameter
+    /// (`gyro` has none: it never reads the magnetometer, and is left as it is).
+    pub fn set_dof(&mut self, dof: Dof) -> Result<(), RegistryError> {
         if self.params.get("dof").is_some() {
-            self.params.set("dof", f64::from(dof))?;
+            self.params.set("dof", dof.to_f64())?;
         }
         Ok(())
+    }
+    /// 6D or 9D for filters that have a `dof` parameter, `None` for `gyro`.
+    pub fn dof(&self) -> Option<Dof> {
+        self.params.get("dof").and_then(Dof::from_f64)
+    }
+    /// True when the filter reads the magnetometer (9D): the one answer for the CLI, the
+    /// batch engine and the tests (`gyro`: false).
+    pub fn uses_magnetometer(&self) -> bool {
+        self.dof().is_some_and(Dof::uses_magnetometer)
+    }
+    /// The input-screening limits (`max_dt`, `max_gyr`) these parameters give the filter.
+    pub fn screen_limits(&self) -> ScreenLimits {
+        self.params.screen_limits()
     }
     /// The current value of a parameter.
     pub fn get(&self, name: &str) -> Option<f64> {

@@ -18,10 +18,18 @@
 //!
 //! ```
 //! use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
-//! use rootfuse_attitude::sim::scenario;
 //! use rootfuse_attitude::smooth::forward_backward;
-//!
-//! let rec = scenario("slow-rotation", 1, 20.0, 100.0).unwrap();
+//! use rootfuse_attitude::{Recording, Vec3};
+//! // 1 s level and at rest, sampled at 100 Hz, with a magnetometer (9D).
+//! let n = 100;
+//! let rec = Recording {
+//!     name: "rest".into(),
+//!     t: (0..n).map(|i| i as f64 * 0.01).collect(),
+//!     gyr: vec![Vec3::zero(); n],
+//!     acc: vec![Vec3::new(0.0, 0.0, 9.81); n],
+//!     mag: Some(vec![Vec3::new(0.0, 20.0, -40.0); n]),
+//!     ..Default::default()
+//! };
 //! let p = SqrtEskfParams::default();
 //! let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), true).unwrap();
 //! assert_eq!(out.quat.len(), rec.len());
@@ -29,7 +37,6 @@
 //! ```
 
 use crate::filters::Rejections;
-use crate::metrics::{error_heading, error_quat};
 use crate::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mat;
 use std::vec::Vec;
@@ -47,13 +54,23 @@ pub struct Smoothed {
 }
 
 /// Why a recording could not be smoothed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum SmoothError {
     /// The filter does not report an attitude covariance, so the two passes cannot be
     /// weighted ([`OrientationFilter::attitude_covariance`] returned `None`).
-    #[error("the filter reports no attitude covariance, which the smoother needs as weights")]
     NoCovariance,
 }
+
+impl core::fmt::Display for SmoothError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NoCovariance => f.write_str(
+                "the filter reports no attitude covariance, which the smoother needs as weights",
+            ),
+        }
+    }
+}
+impl std::error::Error for SmoothError {}
 
 /// One pass: estimate and attitude covariance after each sample.
 type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
@@ -166,7 +183,9 @@ fn heading_offset(forward: &Pass, backward: &Pass) -> f64 {
             (Some(a), Some(b)) => a.m[2][2] + b.m[2][2],
             _ => continue,
         };
-        let psi = error_heading(error_quat(*qf, *qb));
+        // Heading of the error qf ⊗ qb* (earth frame), as the BROAD 6D alignment defines it.
+        let e = *qf * qb.conj();
+        let psi = 2.0 * e.z.atan2(e.w);
         let w = 1.0 / var;
         if psi.is_finite() && w.is_finite() && w > 0.0 {
             s += w * psi.sin();

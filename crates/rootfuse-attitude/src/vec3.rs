@@ -160,3 +160,10 @@ impl<T: Lane> Mul<T> for Vec3<T> {
         Self::new(self.x * s, self.y * s, self.z * s)
     }
 }
+
+impl<T: Lane> rootfuse_lane::Select<T::Mask> for Vec3<T> {
+    #[inline]
+    fn select(mask: T::Mask, a: &Self, b: &Self) -> Self {
+        Self::select(mask, *a, *b)
+    }
+}

@@ -386,7 +386,7 @@ impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
     ///     .map(|kp| {
     ///         let mut s = FilterSpec::new("mahony").unwrap();
     ///         s.set(kp).unwrap();
-    ///         s.set_dof(6).unwrap();
+    ///         s.set_dof(rootfuse_attitude::Dof::Six).unwrap();
     ///         s
     ///     })
     ///     .collect();

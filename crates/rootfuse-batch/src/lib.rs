@@ -8,11 +8,11 @@
 //!
 //! ```
 //! use rootfuse_attitude::registry::FilterSpec;
-//! use rootfuse_attitude::sim::scenario;
+//! use rootfuse_eval::sim::scenario;
 //! use rootfuse_batch::{Precision, run_recordings};
 //!
 //! let mut spec = FilterSpec::new("ekf").unwrap();
-//! spec.set_dof(6).unwrap();
+//! spec.set_dof(rootfuse_attitude::Dof::Six).unwrap();
 //! let recs: Vec<_> = (0..3).map(|seed| scenario("static", seed, 1.0, 100.0).unwrap()).collect();
 //! let out = run_recordings(&spec, &recs, Precision::F64);
 //! assert!(out.iter().all(|o| o.quat.len() == 100 && o.rejections.dt == 0));
@@ -132,6 +132,7 @@
 
 mod batch;
 mod recordings;
+#[cfg(feature = "throughput")]
 mod throughput;
 
 /// The rayon this crate spreads chunks with (configure its pools, e.g. the thread count).
@@ -144,6 +145,7 @@ pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
     run_sources_with, status_flags,
 };
+#[cfg(feature = "throughput")]
 pub use throughput::{
     INTERLEAVE_STATE_BYTES, ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, interleaves,
     sweep, throughput,

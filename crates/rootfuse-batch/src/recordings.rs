@@ -116,7 +116,7 @@ pub struct ChannelOutput {
 ///
 /// ```
 /// use rootfuse_attitude::registry::FilterSpec;
-/// use rootfuse_attitude::sim::scenario;
+/// use rootfuse_eval::sim::scenario;
 /// use rootfuse_batch::{Precision, run_recordings};
 ///
 /// let spec = FilterSpec::new("mahony").unwrap();
@@ -141,7 +141,7 @@ pub fn run_recordings(
 ///
 /// ```
 /// use rootfuse_attitude::registry::FilterSpec;
-/// use rootfuse_attitude::sim::scenario;
+/// use rootfuse_eval::sim::scenario;
 /// use rootfuse_batch::{Columns, Precision, flag, run_recordings_with};
 ///
 /// let spec = FilterSpec::new("sqrt-eskf").unwrap();

@@ -8,11 +8,12 @@
 use crate::engine::{Precision, run_recordings};
 use crate::plot;
 use clap::Args;
-use rootfuse_attitude::io::list_dir;
-use rootfuse_attitude::metrics::{Alignment, evaluate, evaluate_series};
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
-use rootfuse_attitude::sim::scenario_batch;
-use rootfuse_attitude::{Recording, io::read_csv};
+use rootfuse_attitude::{Dof, Recording};
+use rootfuse_eval::metrics::{Alignment, evaluate, evaluate_series};
+use rootfuse_eval::sim::scenario_batch;
+use rootfuse_io::list_dir;
+use rootfuse_io::read_csv;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -100,15 +101,15 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
     let mut speed: Vec<(String, f64)> = Vec::new();
     let mut series: Vec<(String, Vec<f64>)> = Vec::new();
     for &kind in FilterKind::ALL {
-        for dof in [9u8, 6] {
+        for dof in [Dof::Nine, Dof::Six] {
             let mut spec = FilterSpec::new(kind.name()).map_err(|e| e.to_string())?;
             spec.set_dof(dof).map_err(|e| e.to_string())?;
-            let align = if dof == 9 {
+            let align = if dof == Dof::Nine {
                 Alignment::NineD
             } else {
                 Alignment::SixD
             };
-            let label = format!("{} {dof}D", kind.name());
+            let label = format!("{} {dof}", kind.name());
             let mut cells = Vec::new();
             let mut filtering = 0.0;
             for (name, recs) in &fleet {
@@ -122,7 +123,7 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
                     incl += r.inclination;
                 }
                 // Gyro-only never observes heading: its 9D error would flatten every other curve.
-                if *name == "fast-rotation" && dof == 9 && kind != FilterKind::Gyro {
+                if *name == "fast-rotation" && dof == Dof::Nine && kind != FilterKind::Gyro {
                     let s = evaluate_series(&recs[0], &outputs[0].quat, align)
                         .map_err(|e| e.to_string())?;
                     series.push((kind.name().to_string(), s.total));

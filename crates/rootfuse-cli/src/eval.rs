@@ -1,7 +1,7 @@
 //! `rootfuse eval`: the BROAD metrics of estimate files against ground truth.
 use clap::Args;
-use rootfuse_attitude::io::{read_csv, read_estimates};
-use rootfuse_attitude::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_io::{read_csv, read_estimates};
 use std::path::{Path, PathBuf};
 
 /// Options of `rootfuse eval`.

@@ -3,11 +3,11 @@ use crate::Outcome;
 use crate::engine::{Columns, PrecisionArg, run_recordings_with};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use rootfuse_attitude::io::{list_dir, read_csv, write_estimates};
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_attitude::smooth::forward_backward;
-use rootfuse_attitude::{OrientationFilter, Recording};
+use rootfuse_attitude::{Dof, OrientationFilter, Recording};
 use rootfuse_batch::{ChannelOutput, RejectionTotals};
+use rootfuse_io::{list_dir, read_csv, write_estimates};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -62,7 +62,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         spec.set(p).map_err(|e| e.to_string())?;
     }
     if let Some(dof) = &args.dof {
-        spec.set_dof(if dof == "6" { 6 } else { 9 })
+        spec.set_dof(if dof == "6" { Dof::Six } else { Dof::Nine })
             .map_err(|e| e.to_string())?;
     }
     if args.covariance && spec.build::<f64>().attitude_covariance().is_none() {
@@ -183,7 +183,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
 /// Forward-backward smoothing of every recording (f64), with the forward pass's rejection
 /// counts.
 fn smooth_recordings(spec: &FilterSpec, recs: &[Recording]) -> Result<Vec<ChannelOutput>, String> {
-    let nine_d = spec.get("dof").is_none_or(|d| d > 7.5);
+    let nine_d = spec.uses_magnetometer();
     recs.iter()
         .map(|rec| {
             let smoothed = forward_backward(rec, || spec.build::<f64>(), nine_d)

@@ -1,6 +1,7 @@
 //! `rootfuse throughput`: one filter measured in one run as scalar f32, scalar f64, f32x8
 //! lanes, f64x4 lanes and f32x8 lanes on every core (synthetic in-memory data).
 use clap::Args;
+use rootfuse_attitude::Dof;
 use rootfuse_attitude::registry::FilterSpec;
 
 /// Options of `rootfuse throughput`.
@@ -139,7 +140,7 @@ fn run_sweep(args: &ThroughputArgs, spec: &FilterSpec) -> Result<(), String> {
         let title = format!(
             "{} {}D, f32x8 lanes, one core: throughput vs channels",
             spec.kind().name(),
-            spec.get("dof").map_or(9.0, |d| d)
+            if spec.uses_magnetometer() { 9 } else { 6 }
         );
         crate::plot::throughput_sweep(path, &title, &lines, &marks)?;
     }
@@ -156,7 +157,7 @@ pub fn run(args: &ThroughputArgs) -> Result<(), String> {
         spec.set(p).map_err(|e| e.to_string())?;
     }
     if let Some(dof) = &args.dof {
-        spec.set_dof(if dof == "6" { 6 } else { 9 })
+        spec.set_dof(if dof == "6" { Dof::Six } else { Dof::Nine })
             .map_err(|e| e.to_string())?;
     }
     if args.sweep {

@@ -1,8 +1,8 @@
 //! End-to-end tests of the built `rootfuse` binary: run + eval agree with the library, and
 //! bad input gives one clear line and exit code 2 (never a panic).
-use rootfuse_attitude::io::{read_csv, read_estimates, write_recording};
-use rootfuse_attitude::metrics::{Alignment, evaluate};
-use rootfuse_attitude::sim::scenario;
+use rootfuse_eval::metrics::{Alignment, evaluate};
+use rootfuse_eval::sim::scenario;
+use rootfuse_io::{read_csv, read_estimates, write_recording};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -1,6 +1,6 @@
 //! The CSV recording reader on arbitrary bytes.
 
-use rootfuse_attitude::io::{ReadError, read_csv_from};
+use rootfuse_io::{ReadError, read_csv_from};
 
 /// Fuzz target `csv_reader`: [`read_csv_from`] on arbitrary bytes.
 ///

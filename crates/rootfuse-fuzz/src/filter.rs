@@ -1,9 +1,8 @@
 //! Every registered filter's update on arbitrary samples and time steps.
 
 use crate::Bytes;
-use rootfuse_attitude::filters::ScreenLimits;
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
-use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Vec3};
+use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Vec3};
 
 /// Most steps one input runs (keeps every input fast).
 const MAX_STEPS: usize = 400;
@@ -17,7 +16,7 @@ pub(crate) fn spec_from(input: &mut Bytes) -> FilterSpec {
     // Unreachable: the name comes from the registry itself, and 6 and 9 are the two values
     // every `dof` parameter accepts.
     let mut spec = FilterSpec::new(kind.name()).expect("unreachable: a registered name");
-    spec.set_dof(if flags & 2 != 0 { 9 } else { 6 })
+    spec.set_dof(if flags & 2 != 0 { Dof::Nine } else { Dof::Six })
         .expect("unreachable: 6 and 9 are valid dimensions");
     let which = input.u8();
     let end = input.u8();
@@ -84,8 +83,8 @@ fn run<S: Lane<Scalar = S, Mask = bool> + Into<f64>>(
     tol: f64,
 ) {
     let name = spec.kind().name();
-    let nine_d = spec.get("dof").is_some_and(|d| d > 7.5);
-    let limits = ScreenLimits::default();
+    let nine_d = spec.uses_magnetometer();
+    let limits = spec.screen_limits();
     let mut f = spec.build::<S>();
     let c = |v: Vec3<f64>| Vec3::<S>::from_f64([v.x, v.y, v.z]);
     for step in 0..MAX_STEPS {

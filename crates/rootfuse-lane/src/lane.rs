@@ -19,6 +19,7 @@ pub trait Mask:
     + Not<Output = Self>
     + BitAndAssign
     + BitOrAssign
+    + Select<Self>
 {
     /// Number of lanes.
     const LANES: usize;
@@ -40,6 +41,38 @@ pub trait Mask:
     fn test(self, lane: usize) -> bool {
         assert!(lane < Self::LANES, "lane {lane} out of range");
         (self.bitmask() >> lane) & 1 == 1
+    }
+}
+
+/// A per-lane choice between two whole values, `if mask { a } else { b }` lane by lane: what
+/// a branch-free update uses to keep some lanes' state and take others'.
+///
+/// Implemented for every [`Lane`] type, masks, [`Mat`](crate::Mat) and arrays; a state struct
+/// implements it field by field (the attitude crate's `lane_state!` does so for every field,
+/// so a new field cannot be forgotten).
+pub trait Select<M>: Sized {
+    /// `a` where `mask` is set, `b` elsewhere.
+    fn select(mask: M, a: &Self, b: &Self) -> Self;
+}
+
+impl<T: Lane> Select<T::Mask> for T {
+    #[inline]
+    fn select(mask: T::Mask, a: &Self, b: &Self) -> Self {
+        T::select(mask, *a, *b)
+    }
+}
+
+impl Select<bool> for bool {
+    #[inline]
+    fn select(mask: bool, a: &Self, b: &Self) -> Self {
+        if mask { *a } else { *b }
+    }
+}
+
+impl<M: Copy, S: Select<M>, const N: usize> Select<M> for [S; N] {
+    #[inline]
+    fn select(mask: M, a: &Self, b: &Self) -> Self {
+        core::array::from_fn(|i| S::select(mask, &a[i], &b[i]))
     }
 }
 

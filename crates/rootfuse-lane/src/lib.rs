@@ -34,7 +34,7 @@ mod lane;
 pub mod mat;
 mod x2;
 
-pub use lane::{Counts, Lane, Mask};
+pub use lane::{Counts, Lane, Mask, Select};
 pub use mat::{Mat, Vector};
 pub use wide;
 pub use x2::X2;

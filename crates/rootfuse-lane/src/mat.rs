@@ -112,6 +112,13 @@ impl<T: Lane, const R: usize, const C: usize> Mat<T, R, C> {
     }
 }
 
+impl<T: Lane, const R: usize, const C: usize> crate::Select<T::Mask> for Mat<T, R, C> {
+    #[inline]
+    fn select(mask: T::Mask, a: &Self, b: &Self) -> Self {
+        Mat::select(mask, a, b)
+    }
+}
+
 impl<T: Lane, const N: usize> Mat<T, N, N> {
     /// The identity matrix.
     #[inline]

@@ -1,9 +1,8 @@
 //! Quaternion complementary filter with decoupled inclination and heading corrections
 //! [`complementary`].
 
-use super::{
-    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params, up,
-};
+use super::LaneParams;
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params, up};
 use crate::blocks::{integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -12,11 +11,11 @@ params! {
     /// Parameters of [`Complementary`].
     pub struct ComplementaryParams {
         /// Time constant of the inclination correction toward gravity.
-        tau_acc: 3.0, "s", [1e-3, 1e6];
+        tau_acc: f64 = 3.0, "s", [1e-3, 1e6];
         /// Time constant of the heading correction toward magnetic north.
-        tau_mag: 5.0, "s", [1e-3, 1e6];
+        tau_mag: f64 = 5.0, "s", [1e-3, 1e6];
         /// 9: use the magnetometer for heading; 6: gravity only.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -40,13 +39,19 @@ pub struct Complementary<T: Lane> {
 impl<T: Lane> Complementary<T> {
     /// A filter with the given parameters.
     pub fn new(p: &ComplementaryParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, ComplementaryParams>) -> Self {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(false),
-            tau_acc: T::from_f64(p.tau_acc),
-            tau_mag: T::from_f64(p.tau_mag),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            tau_acc: p.coef(|p| p.tau_acc),
+            tau_mag: p.coef(|p| p.tau_mag),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }

@@ -1,9 +1,10 @@
 //! Seed 004: the quaternion EKF observing an explicit complementary filter [`ecf-ekf`].
 
+use super::LaneParams;
 use super::ekf::State;
 use super::{
-    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, nine_d,
-    params, up,
+    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
+    up,
 };
 use crate::preprocess::MovingMean;
 use crate::{ImuSample, Quat, Vec3};
@@ -17,23 +18,23 @@ params! {
     pub struct EcfEkfParams {
         /// Moving-average window on all nine axes, samples (1 = no pre-processing). The source
         /// uses 10 at 500 Hz (a 20 ms span); the default 2 is that span at 100 Hz.
-        window: 2.0, "samples", [1.0, 32.0];
+        window: u32 = 2.0, "samples", [1.0, 32.0];
         /// Proportional gain of the complementary filter.
-        kp: 3.0, "rad/s", [0.0, 100.0];
+        kp: f64 = 3.0, "rad/s", [0.0, 100.0];
         /// Integral gain of the complementary filter.
-        ki: 0.01, "rad/s²", [0.0, 100.0];
+        ki: f64 = 0.01, "rad/s²", [0.0, 100.0];
         /// Largest magnitude of the complementary filter's integral term (anti-windup).
-        max_bias: 0.2, "rad/s", [0.0, 10.0];
+        max_bias: f64 = 0.2, "rad/s", [0.0, 10.0];
         /// Gyroscope white-noise density of the EKF.
-        gyr_noise: 0.005, "rad/s/√Hz", [1e-9, 10.0];
+        gyr_noise: f64 = 0.005, "rad/s/√Hz", [1e-9, 10.0];
         /// Gyro-bias random-walk density of the EKF.
-        bias_walk: 2e-5, "rad/s²/√Hz", [0.0, 10.0];
+        bias_walk: f64 = 2e-5, "rad/s²/√Hz", [0.0, 10.0];
         /// Initial standard deviation of each EKF gyro-bias component.
-        init_bias_std: 0.003, "rad/s", [1e-9, 10.0];
+        init_bias_std: f64 = 0.003, "rad/s", [1e-9, 10.0];
         /// Standard deviation of each component of the observed (complementary-filter) quaternion.
-        obs_noise: 0.002, "1", [1e-6, 10.0];
+        obs_noise: f64 = 0.002, "1", [1e-6, 10.0];
         /// 9: use the magnetometer; 6: gravity only (heading from the gyroscope).
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -95,21 +96,27 @@ pub struct EcfEkf<T: Lane> {
 impl<T: Lane> EcfEkf<T> {
     /// A filter with the given parameters.
     pub fn new(p: &EcfEkfParams) -> Self {
-        let window = p.window.round() as usize;
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, EcfEkfParams>) -> Self {
+        let window = p.first().window as usize;
         Self {
             means: core::array::from_fn(|_| MovingMean::with_len(window)),
             ecf_q: Quat::identity(),
             integral: Vec3::zero(),
-            x: State::new(p.init_bias_std),
+            x: State::new(p.coef(|p| p.init_bias_std * p.init_bias_std)),
             initialized: <T::Mask as Mask>::splat(false),
-            kp: T::from_f64(p.kp),
-            ki: T::from_f64(p.ki),
-            max_bias: T::from_f64(p.max_bias),
-            gyr_var: T::from_f64(p.gyr_noise * p.gyr_noise),
-            bias_var: T::from_f64(p.bias_walk * p.bias_walk),
-            obs_var: T::from_f64(p.obs_noise * p.obs_noise),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            kp: p.coef(|p| p.kp),
+            ki: p.coef(|p| p.ki),
+            max_bias: p.coef(|p| p.max_bias),
+            gyr_var: p.coef(|p| p.gyr_noise * p.gyr_noise),
+            bias_var: p.coef(|p| p.bias_walk * p.bias_walk),
+            obs_var: p.coef(|p| p.obs_noise * p.obs_noise),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }

@@ -1,8 +1,9 @@
 //! The 7-state quaternion + gyro-bias extended Kalman filter [`ekf`]: the "plain EKF".
 
+use super::LaneParams;
 use super::{
-    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, nine_d,
-    params, up,
+    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
+    up,
 };
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat};
@@ -11,21 +12,21 @@ params! {
     /// Parameters of [`Ekf`].
     pub struct EkfParams {
         /// Gyroscope white-noise density.
-        gyr_noise: 0.005, "rad/s/√Hz", [1e-9, 10.0];
+        gyr_noise: f64 = 0.005, "rad/s/√Hz", [1e-9, 10.0];
         /// Gyro-bias random-walk density.
-        bias_walk: 2e-5, "rad/s²/√Hz", [0.0, 10.0];
+        bias_walk: f64 = 2e-5, "rad/s²/√Hz", [0.0, 10.0];
         /// Standard deviation of the unit accelerometer direction (includes unmodelled acceleration).
-        acc_noise: 0.05, "1", [1e-6, 10.0];
+        acc_noise: f64 = 0.05, "1", [1e-6, 10.0];
         /// Standard deviation of the unit magnetometer direction (includes disturbances).
-        mag_noise: 0.1, "1", [1e-6, 10.0];
+        mag_noise: f64 = 0.1, "1", [1e-6, 10.0];
         /// Accelerometer corrections are skipped when `|‖a‖ − g| > acc_gate·g`.
-        acc_gate: 0.15, "1", [0.0, 100.0];
+        acc_gate: f64 = 0.15, "1", [0.0, 100.0];
         /// Gravity magnitude used by the gate.
-        gravity: 9.81, "m/s²", [0.1, 100.0];
+        gravity: f64 = 9.81, "m/s²", [0.1, 100.0];
         /// Initial standard deviation of each gyro-bias component.
-        init_bias_std: 0.01, "rad/s", [1e-9, 10.0];
+        init_bias_std: f64 = 0.01, "rad/s", [1e-9, 10.0];
         /// 9: use the magnetometer; 6: gravity only.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -57,20 +58,26 @@ pub struct Ekf<T: Lane> {
 impl<T: Lane> Ekf<T> {
     /// A filter with the given parameters.
     pub fn new(p: &EkfParams) -> Self {
-        let x = State::new(p.init_bias_std);
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, EkfParams>) -> Self {
+        let x = State::new(p.coef(|p| p.init_bias_std * p.init_bias_std));
         Self {
             q: x.q,
             bias: x.bias,
             p: x.p,
             initialized: <T::Mask as Mask>::splat(false),
-            gyr_var: T::from_f64(p.gyr_noise * p.gyr_noise),
-            bias_var: T::from_f64(p.bias_walk * p.bias_walk),
-            acc_var: T::from_f64(p.acc_noise * p.acc_noise),
-            mag_var: T::from_f64(p.mag_noise * p.mag_noise),
-            acc_gate: T::from_f64(p.acc_gate * p.gravity),
-            gravity: T::from_f64(p.gravity),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            gyr_var: p.coef(|p| p.gyr_noise * p.gyr_noise),
+            bias_var: p.coef(|p| p.bias_walk * p.bias_walk),
+            acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
+            mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
+            acc_gate: p.coef(|p| p.acc_gate * p.gravity),
+            gravity: p.coef(|p| p.gravity),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }
@@ -203,11 +210,11 @@ impl<T: Lane> State<T> {
         j.congruence(&p_qq).scale(T::from_f64(4.0))
     }
     /// The identity orientation with variance 0.01 per quaternion component, zero bias with
-    /// standard deviation `init_bias_std` (rad/s) per axis.
-    pub fn new(init_bias_std: f64) -> Self {
+    /// variance `init_bias_var` (rad²/s²) per axis.
+    pub fn new(init_bias_var: T) -> Self {
         let mut p = Mat::<T, 7, 7>::identity().scale(T::from_f64(0.01));
         for i in 4..7 {
-            p.m[i][i] = T::from_f64(init_bias_std * init_bias_std);
+            p.m[i][i] = init_bias_var;
         }
         Self {
             q: Quat::identity(),

@@ -9,7 +9,7 @@ params! {
     pub struct GyroParams {
         /// 1: take the initial inclination from the first usable accelerometer sample (heading
         /// 0); 0: start at the identity.
-        init_from_acc: 1.0, "1", [0.0, 1.0];
+        init_from_acc: bool = 1.0, "1", [0.0, 1.0];
     }
 }
 
@@ -27,8 +27,8 @@ impl<T: Lane> GyroIntegration<T> {
     pub fn new(params: &GyroParams) -> Self {
         Self {
             q: Quat::identity(),
-            initialized: <T::Mask as Mask>::splat(params.init_from_acc < 0.5),
-            limits: ScreenLimits::default(),
+            initialized: <T::Mask as Mask>::splat(!params.init_from_acc),
+            limits: params.screen_limits(),
             rejections: Rejections::default(),
         }
     }

@@ -1,7 +1,7 @@
 //! Seed 003's MEMS heading pipeline (S1–S3) as a full-attitude filter [`heading-pipeline`].
 
 use super::complementary::tilt_correction;
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{integrate_gyro, true_heading_error};
 use crate::preprocess::{LowPass, MovingMean, MovingMedian};
 use crate::{ImuSample, Quat, Vec3};
@@ -11,28 +11,28 @@ params! {
     /// Parameters of [`HeadingPipeline`].
     pub struct HeadingPipelineParams {
         /// Time constant of the inclination correction toward the smoothed gravity direction.
-        tau_acc: 3.0, "s", [1e-3, 1e6];
+        tau_acc: f64 = 3.0, "s", [1e-3, 1e6];
         /// Low-pass factor `a` of the pre-processing chain, `Y(n) = a·X(n) + (1 − a)·Y(n−1)`
         /// (1 = pass-through).
-        lp_alpha: 0.5, "1", [1e-3, 1.0];
+        lp_alpha: f64 = 0.5, "1", [1e-3, 1.0];
         /// Heading random-walk intensity of the 2-state Kalman filter.
-        q_heading: 1e-4, "rad²/s", [0.0, 10.0];
+        q_heading: f64 = 1e-4, "rad²/s", [0.0, 10.0];
         /// Heading-rate bias random-walk intensity of the 2-state Kalman filter.
-        q_bias: 1e-8, "rad²/s³", [0.0, 1.0];
+        q_bias: f64 = 1e-8, "rad²/s³", [0.0, 1.0];
         /// Variance of one tilt-compensated magnetic heading measurement.
-        r_mag: 0.01, "rad²", [1e-8, 100.0];
+        r_mag: f64 = 0.01, "rad²", [1e-8, 100.0];
         /// Initial standard deviation of the heading-rate bias.
-        bias_std0: 0.01, "rad/s", [0.0, 10.0];
+        bias_std0: f64 = 0.01, "rad/s", [0.0, 10.0];
         /// The bias learns only while the inclination disagrees with the smoothed gravity by
         /// less than this (about 6° by default): a tilt transient makes the magnetic heading
         /// wrong in a way that looks like drift, not bias.
-        bias_gate: 0.1, "rad", [0.0, 10.0];
+        bias_gate: f64 = 0.1, "rad", [0.0, 10.0];
         /// Weight of the gyro-integrated heading in `ψ_MEMS = Coeff·ψ_gyro + (1 − Coeff)·ψ_filtered`.
-        coeff: 0.96, "1", [0.0, 1.0];
+        coeff: f64 = 0.96, "1", [0.0, 1.0];
         /// Magnetic declination (east positive): true north is this far west of magnetic north.
-        declination: 0.0, "rad", [-3.15, 3.15];
+        declination: f64 = 0.0, "rad", [-3.15, 3.15];
         /// 9: magnetic heading; 6: no heading reference (the heading is the gyro heading).
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -105,7 +105,7 @@ impl<T: Lane> VecChain<T> {
 ///   the earth frame of the gyro-propagated estimate, where both are constant, so smoothing
 ///   removes vibration and spikes without the rotation lag a sensor-frame smoother adds. The
 ///   gyroscope is not smoothed (it is integrated). A rejected sample feeds NaN, which the chain
-///   holds out. The spectrum (S14) is an analysis tool ([`spectrum`](crate::preprocess::spectrum)).
+///   holds out. The spectrum (S14) is an analysis tool (`rootfuse_eval::spectrum`).
 /// - S31's complementary filter is read as the inclination path above (the source's formulas
 ///   are images, not in the text).
 /// - S33/S34: the integration interval `[T_k, T_{k+1}]` is one sample and it starts from the
@@ -168,8 +168,8 @@ impl<T: Lane> HeadingPipeline<T> {
             p0,
             coeff: T::from_f64(p.coeff),
             declination: T::from_f64(p.declination),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            nine_d: p.dof.uses_magnetometer(),
+            limits: p.screen_limits(),
             rejections: Rejections::default(),
         }
     }

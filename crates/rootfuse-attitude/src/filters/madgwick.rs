@@ -1,8 +1,9 @@
 //! Madgwick's gradient-descent filter [`madgwick`].
 
+use super::LaneParams;
 use super::{
-    OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, nine_d,
-    params, up,
+    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
+    up,
 };
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -14,11 +15,11 @@ params! {
         /// one value that matches the reference implementation's BROAD accuracy on all four
         /// trials: larger β follows accelerations (trial 16) better, smaller β magnetic
         /// disturbances (trial 29).
-        beta: 0.0525, "rad/s", [0.0, 10.0];
+        beta: f64 = 0.0525, "rad/s", [0.0, 10.0];
         /// Gyro-bias drift gain ζ of the paper's MARG variant (0 disables bias estimation).
-        zeta: 0.0, "rad/s²", [0.0, 10.0];
+        zeta: f64 = 0.0, "rad/s²", [0.0, 10.0];
         /// 9: use the magnetometer; 6: gravity only.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -46,14 +47,20 @@ pub struct Madgwick<T: Lane> {
 impl<T: Lane> Madgwick<T> {
     /// A filter with the given parameters.
     pub fn new(p: &MadgwickParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, MadgwickParams>) -> Self {
         Self {
             q: Quat::identity(),
             bias: Vec3::zero(),
             initialized: <T::Mask as Mask>::splat(false),
-            beta: T::from_f64(p.beta),
-            zeta: T::from_f64(p.zeta),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            beta: p.coef(|p| p.beta),
+            zeta: p.coef(|p| p.zeta),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }

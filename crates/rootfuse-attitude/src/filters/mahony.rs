@@ -1,6 +1,7 @@
 //! Mahony's explicit complementary filter [`mahony`].
 
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params};
+use super::LaneParams;
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -9,16 +10,16 @@ params! {
     /// Parameters of [`Mahony`].
     pub struct MahonyParams {
         /// Proportional gain on the vector-alignment error.
-        kp: 0.5, "rad/s", [0.0, 100.0];
+        kp: f64 = 0.5, "rad/s", [0.0, 100.0];
         /// Integral gain (gyro-bias estimation).
-        ki: 0.02, "rad/s²", [0.0, 100.0];
+        ki: f64 = 0.02, "rad/s²", [0.0, 100.0];
         /// Largest bias estimate magnitude the integral may reach (anti-windup).
-        max_bias: 0.2, "rad/s", [0.0, 10.0];
+        max_bias: f64 = 0.2, "rad/s", [0.0, 10.0];
         /// The bias integral learns only while the alignment error `|e|` is below this (about
         /// 6° by default): a large error is a transient (start-up, a disturbance), not bias.
-        bias_gate: 0.1, "1", [0.0, 10.0];
+        bias_gate: f64 = 0.1, "1", [0.0, 10.0];
         /// 9: use the magnetometer; 6: gravity only.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -52,17 +53,23 @@ pub struct Mahony<T: Lane> {
 impl<T: Lane> Mahony<T> {
     /// A filter with the given parameters.
     pub fn new(p: &MahonyParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, MahonyParams>) -> Self {
         Self {
             q: Quat::identity(),
             bias: Vec3::zero(),
             initialized: <T::Mask as Mask>::splat(false),
-            kp: T::from_f64(p.kp),
-            ki: T::from_f64(p.ki),
-            max_bias: T::from_f64(p.max_bias),
-            max_bias2: T::from_f64(p.max_bias * p.max_bias),
-            bias_gate2: T::from_f64(p.bias_gate * p.bias_gate),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            kp: p.coef(|p| p.kp),
+            ki: p.coef(|p| p.ki),
+            max_bias: p.coef(|p| p.max_bias),
+            max_bias2: p.coef(|p| p.max_bias * p.max_bias),
+            bias_gate2: p.coef(|p| p.bias_gate * p.bias_gate),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }

@@ -7,22 +7,49 @@
 //! counted per reason in [`Rejections`].
 
 mod complementary;
+mod complementary_reconstruction;
 mod ecf_ekf;
 mod ekf;
-mod flagship;
 mod gyro;
 mod heading_pipeline;
 mod lsq_fusion;
 mod madgwick;
 mod mahony;
 mod params;
-mod reconstruction;
 mod screen;
+mod sqrt_eskf;
+
+/// Declares a struct of per-lane filter state with its [`Select`](rootfuse_lane::Select)
+/// implementation generated field by field: a skipped sample keeps a lane's state with one
+/// `select`, and a field added later cannot be left out of it.
+macro_rules! lane_state {
+    (
+        $(#[$meta:meta])*
+        struct $name:ident<T: Lane> {
+            $( $(#[$fmeta:meta])* $field:ident: $ty:ty, )*
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug)]
+        struct $name<T: Lane> {
+            $( $(#[$fmeta])* $field: $ty, )*
+        }
+        impl<T: Lane> rootfuse_lane::Select<T::Mask> for $name<T> {
+            #[inline]
+            fn select(mask: T::Mask, a: &Self, b: &Self) -> Self {
+                Self { $( $field: rootfuse_lane::Select::select(mask, &a.$field, &b.$field), )* }
+            }
+        }
+    };
+}
+pub(crate) use lane_state;
 
 pub use complementary::{Complementary, ComplementaryParams};
+pub use complementary_reconstruction::{
+    ComplementaryReconstruction, ComplementaryReconstructionParams,
+};
 pub use ecf_ekf::{EcfEkf, EcfEkfParams};
 pub use ekf::{Ekf, EkfParams};
-pub use flagship::{SqrtEskf, SqrtEskfParams};
 pub use gyro::{GyroIntegration, GyroParams};
 pub use heading_pipeline::{HeadingPipeline, HeadingPipelineParams};
 pub use lsq_fusion::{
@@ -30,12 +57,12 @@ pub use lsq_fusion::{
 };
 pub use madgwick::{Madgwick, MadgwickParams};
 pub use mahony::{Mahony, MahonyParams};
-pub use params::ParamInfo;
-pub(crate) use params::params;
+pub use params::{Dof, LaneParams, ParamInfo, ParamKind, ParamValue};
 #[cfg(feature = "std")]
 pub use params::{ParamError, Params};
-pub use reconstruction::{ComplementaryReconstruction, ComplementaryReconstructionParams};
+pub(crate) use params::{params, params_with_screening};
 pub use screen::{Rejections, ScreenLimits, Screened};
+pub use sqrt_eskf::{SqrtEskf, SqrtEskfParams};
 
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat};
@@ -111,10 +138,4 @@ pub(crate) fn up<T: Lane>() -> Vec3<T> {
 pub(crate) fn mag_reference<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> Vec3<T> {
     let h = q.rotate(mag);
     Vec3::new(T::zero(), (h.x * h.x + h.y * h.y).sqrt(), h.z)
-}
-
-/// The number 6 or 9 of a `dof` parameter as "use the magnetometer".
-#[inline]
-pub(crate) fn nine_d(dof: f64) -> bool {
-    dof > 7.5
 }

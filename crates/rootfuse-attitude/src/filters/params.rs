@@ -3,12 +3,200 @@
 
 #[cfg(feature = "std")]
 use core::fmt;
+use rootfuse_lane::Lane;
+
+/// 6D (gyroscope and accelerometer: heading unobservable, free) or 9D (with the
+/// magnetometer: heading toward magnetic north) operation of a filter.
+///
+/// As a `key=value` parameter it is written `dof=6` or `dof=9`; any other number is refused.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Dof {
+    /// Gyroscope and accelerometer only; the magnetometer is ignored (not even screened).
+    Six,
+    /// Gyroscope, accelerometer and magnetometer.
+    #[default]
+    Nine,
+}
+
+impl Dof {
+    /// True for 9D: the filter reads the magnetometer.
+    pub const fn uses_magnetometer(self) -> bool {
+        matches!(self, Self::Nine)
+    }
+    /// The number of degrees of freedom: 6 or 9.
+    pub const fn count(self) -> u8 {
+        match self {
+            Self::Six => 6,
+            Self::Nine => 9,
+        }
+    }
+    /// `Some` for 6 and 9, `None` for any other number.
+    pub const fn from_count(n: u8) -> Option<Self> {
+        match n {
+            6 => Some(Self::Six),
+            9 => Some(Self::Nine),
+            _ => None,
+        }
+    }
+}
+
+impl core::fmt::Display for Dof {
+    /// `6D` or `9D`.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}D", self.count())
+    }
+}
+
+/// What values a parameter takes; its `f64` form in `key=value` is checked against this.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParamKind {
+    /// Any number in the range.
+    Real,
+    /// A whole number in the range (a fraction is refused, never rounded).
+    Integer,
+    /// `0` (off) or `1` (on).
+    Switch,
+    /// `6` or `9` ([`Dof`]).
+    Dof,
+}
+
+impl ParamKind {
+    /// A short description for listings: `"number"`, `"whole number"`, `"0 or 1"`, `"6 or 9"`.
+    pub const fn describe(self) -> &'static str {
+        match self {
+            Self::Real => "number",
+            Self::Integer => "whole number",
+            Self::Switch => "0 or 1",
+            Self::Dof => "6 or 9",
+        }
+    }
+}
+
+/// A parameter's Rust type: its `f64` form for `key=value`, listings and bindings.
+pub trait ParamValue: Copy + Default {
+    /// What values it takes.
+    const KIND: ParamKind;
+    /// The value as a number.
+    fn to_f64(self) -> f64;
+    /// The value of a number, `None` when the number is not one of this type (a fraction
+    /// for an integer, anything but 0/1 for a switch, anything but 6/9 for [`Dof`]).
+    fn from_f64(v: f64) -> Option<Self>;
+}
+
+impl ParamValue for f64 {
+    const KIND: ParamKind = ParamKind::Real;
+    fn to_f64(self) -> f64 {
+        self
+    }
+    fn from_f64(v: f64) -> Option<Self> {
+        Some(v)
+    }
+}
+
+impl ParamValue for u32 {
+    const KIND: ParamKind = ParamKind::Integer;
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn from_f64(v: f64) -> Option<Self> {
+        let whole = v >= 0.0 && v <= f64::from(u32::MAX) && v == libm::trunc(v);
+        whole.then_some(v as u32)
+    }
+}
+
+impl ParamValue for bool {
+    const KIND: ParamKind = ParamKind::Switch;
+    fn to_f64(self) -> f64 {
+        if self { 1.0 } else { 0.0 }
+    }
+    fn from_f64(v: f64) -> Option<Self> {
+        match v {
+            0.0 => Some(false),
+            1.0 => Some(true),
+            _ => None,
+        }
+    }
+}
+
+impl ParamValue for Dof {
+    const KIND: ParamKind = ParamKind::Dof;
+    fn to_f64(self) -> f64 {
+        f64::from(self.count())
+    }
+    fn from_f64(v: f64) -> Option<Self> {
+        match v {
+            6.0 => Some(Self::Six),
+            9.0 => Some(Self::Nine),
+            _ => None,
+        }
+    }
+}
+
+/// The parameter sets of a filter's lanes: one set shared by every lane, or one set per
+/// lane (lane `i` takes set `i % len`), so that channels with different parameters can share
+/// one SIMD chunk.
+///
+/// Real-valued parameters become per-lane coefficients ([`coef`](Self::coef)); the ones that
+/// shape the computation itself — `dof`, switches, whole numbers (window lengths) and the
+/// screening limits — are taken from the first set, so every set must agree on them (the
+/// registry's `FilterSpec::same_structure` says whether two specs can share a chunk).
+///
+/// ```
+/// use rootfuse_attitude::filters::{LaneParams, Mahony, MahonyParams};
+/// use rootfuse_attitude::{ImuSample, OrientationFilter, Vec3};
+/// use rootfuse_lane::wide::f32x8;
+///
+/// let sets: Vec<MahonyParams> = (0..8)
+///     .map(|i| MahonyParams { kp: 0.1 * (i + 1) as f64, ..Default::default() })
+///     .collect();
+/// let mut lanes = Mahony::<f32x8>::with_lane_params(&LaneParams::per_lane(&sets).unwrap());
+/// let mut one = Mahony::<f32>::new(&sets[3]);
+/// let v = |x: f32, y: f32, z: f32| Vec3::new(f32x8::splat(x), f32x8::splat(y), f32x8::splat(z));
+/// lanes.update(&ImuSample::six_d(v(0.1, 0.0, 0.0), v(0.0, 1.0, 9.8)), f32x8::splat(0.01));
+/// one.update(&ImuSample::six_d(Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 1.0, 9.8)), 0.01);
+/// assert_eq!(lanes.quat().lane(3), one.quat());
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct LaneParams<'a, P> {
+    sets: &'a [P],
+}
+
+impl<'a, P> LaneParams<'a, P> {
+    /// One set for every lane.
+    pub fn uniform(p: &'a P) -> Self {
+        Self {
+            sets: core::slice::from_ref(p),
+        }
+    }
+    /// One set per lane (lane `i` takes `sets[i % sets.len()]`); `None` for no sets.
+    pub fn per_lane(sets: &'a [P]) -> Option<Self> {
+        (!sets.is_empty()).then_some(Self { sets })
+    }
+    /// The first set: where the structural parameters come from.
+    pub fn first(&self) -> &'a P {
+        &self.sets[0]
+    }
+    /// Every set.
+    pub fn sets(&self) -> &'a [P] {
+        self.sets
+    }
+    /// A per-lane coefficient `f(set)`, computed in `f64` and rounded to the lane type once:
+    /// lane `i` holds exactly what a scalar filter built from its set holds.
+    pub fn coef<T: Lane>(&self, f: impl Fn(&P) -> f64) -> T {
+        match self.sets {
+            [one] => T::from_f64(f(one)),
+            sets => T::from_fn(|i| T::from_f64(f(&sets[i % sets.len()])).extract(0)),
+        }
+    }
+}
 
 /// One parameter's description.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParamInfo {
     /// Name used in `key=value`.
     pub name: &'static str,
+    /// What values it takes (real, whole number, switch, 6/9).
+    pub kind: ParamKind,
     /// Default value.
     pub default: f64,
     /// Unit (`"rad/s"`, `"s"`, `"1"` for dimensionless, …).
@@ -50,6 +238,16 @@ pub enum ParamError {
         /// Largest accepted.
         max: f64,
     },
+    /// The value is in range but not one the parameter takes (a fraction for a whole
+    /// number, anything but 0/1 for a switch, anything but 6/9 for `dof`).
+    WrongKind {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What the parameter takes.
+        kind: ParamKind,
+    },
     /// Not of the form `key=value`.
     Syntax(std::string::String),
 }
@@ -74,6 +272,11 @@ impl fmt::Display for ParamError {
             } => {
                 write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")
             }
+            Self::WrongKind { name, value, kind } => write!(
+                f,
+                "parameter `{name}` = {value} is not allowed: it takes a {}",
+                kind.describe()
+            ),
             Self::Syntax(text) => write!(f, "`{text}` is not of the form key=value"),
         }
     }
@@ -113,30 +316,64 @@ pub trait Params: Clone + Default + fmt::Debug {
     }
 }
 
-/// Declares a parameter struct: fields are `f64`, each with default, unit, range and doc.
+/// Declares a parameter struct: each field has a type ([`ParamValue`]: `f64`, `u32`, `bool`
+/// or [`Dof`]), a default written as a number, a unit, a range and a doc. Every struct also
+/// gets the two input-screening limits `max_dt` and `max_gyr` ([`ScreenLimits`](super::ScreenLimits)).
 macro_rules! params {
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
-            $( $(#[doc = $fdoc:literal])* $field:ident: $default:expr, $unit:literal, [$min:expr, $max:expr]; )*
+            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr]; )*
+        }
+    ) => {
+        $crate::filters::params_with_screening! {
+            $(#[$meta])*
+            pub struct $name {
+                $( $(#[doc = $fdoc])* $field: $ty = $default, $unit, [$min, $max]; )*
+                /// Largest accepted time step; a sample after a longer gap is skipped whole
+                /// (counted in `Rejections::dt`): after a gap the orientation would be a guess.
+                max_dt: f64 = 1.0, "s", [1e-6, 1e6];
+                /// Largest accepted angular-rate magnitude; a faster sample is skipped whole
+                /// (counted in `Rejections::gyr`). The default (35 rad/s, about 2000 °/s) is the
+                /// usual MEMS full scale; raise it for a 4000 °/s gyroscope.
+                max_gyr: f64 = 35.0, "rad/s", [1e-3, 1e5];
+            }
+        }
+    };
+}
+pub(crate) use params;
+
+/// The body of [`params!`] once the screening limits are appended.
+macro_rules! params_with_screening {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident {
+            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr]; )*
         }
     ) => {
         $(#[$meta])*
         #[derive(Clone, Debug, PartialEq)]
         pub struct $name {
-            $( $(#[doc = $fdoc])* #[doc = concat!("\n\nUnit: ", $unit, ". Default: ", stringify!($default), ".")] pub $field: f64, )*
+            $( $(#[doc = $fdoc])* #[doc = concat!("\n\nUnit: ", $unit, ". Default: ", stringify!($default), ".")] pub $field: $ty, )*
         }
         impl Default for $name {
             fn default() -> Self {
-                Self { $( $field: $default, )* }
+                // Every default is a value of its type (tested for every filter), so the
+                // fallback never applies.
+                Self { $( $field: <$ty as $crate::filters::ParamValue>::from_f64($default).unwrap_or_default(), )* }
             }
         }
         impl $name {
-            /// Every parameter with its default, unit, range and description.
+            /// Every parameter with its kind, default, unit, range and description.
             pub const INFO: &'static [$crate::filters::ParamInfo] = &[ $( $crate::filters::ParamInfo {
-                name: stringify!($field), default: $default, unit: $unit, min: $min, max: $max,
+                name: stringify!($field), kind: <$ty as $crate::filters::ParamValue>::KIND,
+                default: $default, unit: $unit, min: $min, max: $max,
                 doc: concat!($($fdoc),*).trim_ascii(),
             }, )* ];
+            /// The input-screening limits of these parameters.
+            pub fn screen_limits(&self) -> $crate::filters::ScreenLimits {
+                $crate::filters::ScreenLimits { max_dt: self.max_dt, max_gyr: self.max_gyr }
+            }
         }
         #[cfg(feature = "std")]
         impl $crate::filters::Params for $name {
@@ -144,7 +381,7 @@ macro_rules! params {
                 Self::INFO
             }
             fn get(&self, name: &str) -> Option<f64> {
-                match name { $( stringify!($field) => Some(self.$field), )* _ => None }
+                match name { $( stringify!($field) => Some($crate::filters::ParamValue::to_f64(self.$field)), )* _ => None }
             }
             fn set(&mut self, name: &str, value: f64) -> Result<(), $crate::filters::ParamError> {
                 match name {
@@ -152,7 +389,11 @@ macro_rules! params {
                         if !($min..=$max).contains(&value) {
                             return Err($crate::filters::ParamError::OutOfRange { name: stringify!($field), value, min: $min, max: $max });
                         }
-                        self.$field = value;
+                        self.$field = <$ty as $crate::filters::ParamValue>::from_f64(value).ok_or(
+                            $crate::filters::ParamError::WrongKind {
+                                name: stringify!($field), value, kind: <$ty as $crate::filters::ParamValue>::KIND,
+                            },
+                        )?;
                         Ok(())
                     } )*
                     _ => Err($crate::filters::ParamError::Unknown {
@@ -164,4 +405,4 @@ macro_rules! params {
         }
     };
 }
-pub(crate) use params;
+pub(crate) use params_with_screening;

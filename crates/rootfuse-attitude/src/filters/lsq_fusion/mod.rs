@@ -9,7 +9,7 @@ pub use denoise::PolyDenoiser;
 pub use drift::{DriftConfig, DriftEstimator, DriftSample};
 
 use super::complementary::tilt_correction;
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, nine_d, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, params};
 use crate::blocks::acc_mag_quat;
 use crate::preprocess::{Hampel, LowPass};
 use crate::{ImuSample, Quat, Vec3};
@@ -21,45 +21,45 @@ params! {
     pub struct LsqFusionParams {
         /// Hampel outlier threshold on the raw gyroscope, in robust standard deviations
         /// (`1.4826·MAD` over the last 5 samples).
-        hampel_k: 3.0, "1", [0.5, 1000.0];
+        hampel_k: f64 = 3.0, "1", [0.5, 1000.0];
         /// Smoothing factor `a` of the first-order low-pass after the Hampel stage
         /// (`y = a·x + (1 − a)·y₋₁`; 1 = no smoothing).
-        smooth: 1.0, "1", [0.01, 1.0];
+        smooth: f64 = 1.0, "1", [0.01, 1.0];
         /// Memory of the local quadratic least-squares denoiser (forgetting `τ/(τ + dt)` per
         /// sample).
-        denoise_tau: 0.01, "s", [1e-4, 10.0];
+        denoise_tau: f64 = 0.01, "s", [1e-4, 10.0];
         /// Gyroscope white-noise standard deviation per sample (the denoiser's weight
         /// `1/σ²`; it scales its covariance only).
-        gyr_noise: 0.01, "rad/s", [1e-6, 10.0];
+        gyr_noise: f64 = 0.01, "rad/s", [1e-6, 10.0];
         /// Memory of the quaternion least-squares fusion (forgetting `τ/(τ + dt)` per sample;
         /// the steady-state gain is `dt/(τ + dt)`).
-        fusion_tau: 5.0, "s", [1e-3, 1e4];
+        fusion_tau: f64 = 5.0, "s", [1e-3, 1e4];
         /// Standard deviation of the accelerometer quaternion's angle at rest (weight
         /// `1/σ²`).
-        acc_noise: 0.02, "rad", [1e-6, 10.0];
+        acc_noise: f64 = 0.02, "rad", [1e-6, 10.0];
         /// Deviation of the specific-force norm from 9.81 m/s² at which the accelerometer
         /// quaternion's variance is doubled (`σ²·(1 + (Δ/acc_dev)²)`).
-        acc_dev: 0.5, "m/s²", [1e-3, 1e3];
+        acc_dev: f64 = 0.5, "m/s²", [1e-3, 1e3];
         /// Length of one averaging block of the drift estimator (one drift measurement per
         /// two blocks).
-        drift_block: 0.5, "s", [0.01, 1000.0];
+        drift_block: f64 = 0.5, "s", [0.01, 1000.0];
         /// Memory of the drift estimator.
-        drift_memory: 60.0, "s", [0.1, 1e7];
+        drift_memory: f64 = 60.0, "s", [0.1, 1e7];
         /// Standard deviation of a block mean of the accelerometer quaternion's angle at rest
         /// (the drift measurement's noise).
-        drift_noise: 0.005, "rad", [1e-6, 1.0];
+        drift_noise: f64 = 0.005, "rad", [1e-6, 1.0];
         /// Standard deviation of a block mean of the magnetometer heading at rest (the
         /// vertical row of the 9D drift measurement; larger than `drift_noise` because indoor
         /// fields are disturbed).
-        drift_mag_noise: 0.2, "rad", [1e-6, 100.0];
+        drift_mag_noise: f64 = 0.2, "rad", [1e-6, 100.0];
         /// Relative gyro scale/alignment error: the drift measurement of a window that turned
         /// by `φ` gets the extra variance `(gyr_scale·φ)²`.
-        gyr_scale: 0.2, "1", [0.0, 1.0];
+        gyr_scale: f64 = 0.2, "1", [0.0, 1.0];
         /// Prior standard deviation and largest drift estimate (covariance bound).
-        drift_max: 0.05, "rad/s", [1e-5, 5.0];
+        drift_max: f64 = 0.05, "rad/s", [1e-5, 5.0];
         /// 9: heading of the accelerometer quaternion from the magnetometer; 6: from the gyro
         /// quaternion.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -142,7 +142,7 @@ const FUSION_PRIOR: f64 = 1.0;
 impl<T: Lane> LsqFusion<T> {
     /// A filter with the given parameters.
     pub fn new(p: &LsqFusionParams) -> Self {
-        let nine = nine_d(p.dof);
+        let nine = p.dof.uses_magnetometer();
         let fusion = Potter::with_isotropic_prior(
             &Vector::from_column([T::one(), T::zero(), T::zero(), T::zero()]),
             T::from_f64(FUSION_PRIOR),
@@ -174,7 +174,7 @@ impl<T: Lane> LsqFusion<T> {
             inv_acc_dev: T::from_f64(1.0 / positive(p.acc_dev, 1.0)),
             nine_d: nine,
             mag_drift_weight: T::from_f64(mag_ratio * mag_ratio),
-            limits: ScreenLimits::default(),
+            limits: p.screen_limits(),
             rejections: Rejections::default(),
         }
     }

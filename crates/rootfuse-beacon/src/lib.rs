@@ -1,5 +1,10 @@
-//! Seed 003 S4–S5: heading and position from iBeacon RSSI, fused into the MEMS heading
-//! (std only, `f64`).
+//! Heading and position from iBeacon RSSI, fused into the MEMS heading of the
+//! `heading-pipeline` filter (std only, `f64`).
+//!
+//! Depends on `rootfuse-attitude` (the heading pipeline filter, quaternions), `rootfuse-lsq`
+//! with `std` (the weighted batch solver on `faer` that fits the RSSI model and
+//! multilaterates) and `rand*` (the seeded walk simulator). It is its own crate so that the
+//! attitude core does not pull in `faer`.
 //!
 //! - [`model`]: the log-distance RSSI model `RSSI(d) = A − 10·n·log10(d)`, fitted by weighted
 //!   least squares.
@@ -13,6 +18,8 @@
 //! Positions are metres in a local east/north plane; headings are the project's yaw: rad,
 //! counter-clockwise about up, 0 toward north (+y), so walking at heading `ψ` moves along
 //! `(−sin ψ, cos ψ)`.
+
+#![warn(missing_docs)]
 
 pub mod fuse;
 pub mod heading;

@@ -111,7 +111,7 @@
 //! at the bias random-walk rate: step detection (innovation-consistency monitoring) is not
 //! there yet.
 //!
-//! Offline, [`crate::smooth::forward_backward`] fuses a forward and a backward run by their
+//! Offline, `rootfuse_attitude::smooth::forward_backward` (with `std`) fuses a forward and a backward run by their
 //! attitude covariances: 9D 0.76 / 1.39 / 0.57 / 1.63 (mean 1.09) against VQF offline's
 //! 1.01 / 1.71 / 0.58 / 1.81 (mean 1.28).
 //!
@@ -126,173 +126,278 @@
 // formulas are written); iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, nine_d, params};
+use super::{
+    Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
+};
 use crate::blocks::{magnetic_heading_error, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
-use rootfuse_lane::{Lane, Mask, Mat};
+use rootfuse_lane::{Lane, Mask, Mat, Select};
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
     pub struct SqrtEskfParams {
         /// Attitude random-walk density driving `δθ` (gyro noise plus unmodelled errors).
-        gyr_noise: 0.005, "rad/√s", [1e-9, 10.0];
+        gyr_noise: f64 = 0.005, "rad/√s", [1e-9, 10.0];
         /// Gyro-bias random-walk density.
-        bias_walk: 1e-5, "rad/s/√s", [0.0, 10.0];
+        bias_walk: f64 = 1e-5, "rad/s/√s", [0.0, 10.0];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
-        tau_acc: 2.0, "s", [0.0, 100.0];
+        tau_acc: f64 = 2.0, "s", [0.0, 100.0];
         /// Noise density of the low-passed inclination measurement (`r = acc_noise²/dt`).
-        acc_noise: 0.003, "rad·√s", [1e-9, 10.0];
+        acc_noise: f64 = 0.003, "rad·√s", [1e-9, 10.0];
         /// χ² gate of each scalar inclination innovation, in standard deviations.
-        acc_gate: 6.0, "1", [0.0, 1e6];
+        acc_gate: f64 = 6.0, "1", [0.0, 1e6];
         /// After this long with every inclination measurement gated, re-inflate and accept.
-        acc_reject_time: 2.0, "s", [0.0, 1e6];
+        acc_reject_time: f64 = 2.0, "s", [0.0, 1e6];
         /// Length of the start-up phase (low-pass time constant ramping up, no gate).
-        startup_time: 3.0, "s", [0.0, 100.0];
+        startup_time: f64 = 3.0, "s", [0.0, 100.0];
         /// Standard deviation the inclination error is re-inflated to on re-acquisition.
-        reacquire_std: 0.5, "rad", [1e-6, 10.0];
+        reacquire_std: f64 = 0.5, "rad", [1e-6, 10.0];
         /// Time constant of the low-pass used by rest detection.
-        rest_tau: 0.5, "s", [1e-3, 100.0];
+        rest_tau: f64 = 0.5, "s", [1e-3, 100.0];
         /// Largest gyro deviation from its low-pass, and largest bias-corrected low-passed
         /// rate, at rest.
-        rest_gyr: 0.035, "rad/s", [0.0, 10.0];
+        rest_gyr: f64 = 0.035, "rad/s", [0.0, 10.0];
         /// Largest accelerometer deviation from its low-pass at rest.
-        rest_acc: 0.5, "m/s²", [0.0, 100.0];
+        rest_acc: f64 = 0.5, "m/s²", [0.0, 100.0];
         /// Minimum duration of a rest before it is declared.
-        rest_time: 1.5, "s", [0.0, 100.0];
+        rest_time: f64 = 1.5, "s", [0.0, 100.0];
         /// Noise density of the at-rest bias measurement (`r = rest_noise²/dt`).
-        rest_noise: 0.0004, "rad/s·√s", [1e-9, 10.0];
+        rest_noise: f64 = 0.0004, "rad/s·√s", [1e-9, 10.0];
         /// Initial standard deviation of each gyro-bias component.
-        init_bias_std: 0.01, "rad/s", [1e-9, 10.0];
+        init_bias_std: f64 = 0.01, "rad/s", [1e-9, 10.0];
         /// Initial standard deviation of the inclination error after the first sample.
-        init_tilt_std: 0.05, "rad", [1e-9, 10.0];
+        init_tilt_std: f64 = 0.05, "rad", [1e-9, 10.0];
         /// Random-walk density of the 9D heading offset beyond the 6D heading drift
         /// (magnetic model errors).
-        heading_walk: 0.0005, "rad/√s", [1e-9, 10.0];
+        heading_walk: f64 = 0.0005, "rad/√s", [1e-9, 10.0];
         /// Rate-proportional random-walk density of the 9D heading offset (gyro scale-factor
         /// and misalignment errors make the 6D heading drift in proportion to the rotation):
         /// the offset's variance grows by `(heading_rate_noise·|ω|)²·dt`.
-        heading_rate_noise: 0.001, "√s", [0.0, 10.0];
+        heading_rate_noise: f64 = 0.001, "√s", [0.0, 10.0];
         /// Noise density of the magnetic heading measurement (`r = mag_noise²/dt`).
-        mag_noise: 0.13, "rad·√s", [1e-9, 10.0];
+        mag_noise: f64 = 0.13, "rad·√s", [1e-9, 10.0];
         /// Largest relative deviation of the field norm from the reference.
-        mag_norm_th: 0.05, "1", [0.0, 10.0];
+        mag_norm_th: f64 = 0.05, "1", [0.0, 10.0];
         /// Largest deviation of the field dip from the reference.
-        mag_dip_th: 0.1, "rad", [0.0, 4.0];
+        mag_dip_th: f64 = 0.1, "rad", [0.0, 4.0];
         /// Time constant with which the field reference and candidate are learned.
-        mag_ref_tau: 10.0, "s", [1e-3, 1e6];
+        mag_ref_tau: f64 = 10.0, "s", [1e-3, 1e6];
         /// A stable candidate field becomes the reference after this long.
-        mag_new_time: 20.0, "s", [0.0, 1e6];
+        mag_new_time: f64 = 20.0, "s", [0.0, 1e6];
         /// Rejection lasting this long makes the (stable) candidate the reference.
-        mag_reject_time: 60.0, "s", [0.0, 1e6];
+        mag_reject_time: f64 = 60.0, "s", [0.0, 1e6];
         /// 9: use the magnetometer; 6: gravity only.
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
-/// Per-lane state of the magnetic-field reference (norm in input units, dip in rad).
-#[derive(Clone, Copy, Debug)]
-struct FieldRef<T: Lane> {
-    norm: T,
-    dip: T,
-    /// Candidate field and how long (s) it has been stable.
-    cand_norm: T,
-    cand_dip: T,
-    cand_time: T,
-    /// How long (s) the field has been rejected without interruption.
-    rejected_time: T,
+lane_state! {
+    /// Per-lane state of the magnetic-field reference (norm in input units, dip in rad).
+    struct FieldReference<T: Lane> {
+        norm: T,
+        dip: T,
+        /// Candidate field and how long (s) it has been stable.
+        candidate_norm: T,
+        candidate_dip: T,
+        candidate_time: T,
+        /// How long (s) the field has been rejected without interruption.
+        rejected_time: T,
+    }
+}
+
+lane_state! {
+    /// Everything a sample changes; a lane that skips a sample keeps all of it.
+    struct State<T: Lane> {
+        /// Strapdown integration of the bias-corrected gyro: sensor to the quasi-inertial
+        /// frame `I`, never corrected.
+        strapdown: Quat<T>,
+        /// Earth-frame correction `c` of the strapdown orientation: `q6 = c ⊗ strapdown`.
+        correction: Quat<T>,
+        /// Heading offset `δ` (rad) that the magnetometer adds: `q9 = qz(δ) ⊗ q6`.
+        heading_offset: T,
+        /// Variance of `δ`, rad².
+        heading_offset_var: T,
+        /// Gyro-bias estimate, rad/s, sensor frame.
+        bias: Vec3<T>,
+        /// Covariance factor `S` of `[δθ, δb]`: `P = S·Sᵀ`.
+        factor: Mat<T, 6, 6>,
+        /// Low-passed specific force in the `I` frame, m/s².
+        acc_lp: Vec3<T>,
+        /// First stage of the two-stage low-pass.
+        acc_lp1: Vec3<T>,
+        rot_lp1: Mat<T, 3, 3>,
+        /// Low-passed sensor-to-`I` rotation matrix (for the lag term of `H`).
+        rot_lp: Mat<T, 3, 3>,
+        /// Rest detection: low-passed gyro (rad/s) and accelerometer (m/s², sensor frame).
+        rest_gyr_lp: Vec3<T>,
+        rest_acc_lp: Vec3<T>,
+        /// How long (s) the rest conditions have held.
+        rest_timer: T,
+        /// How long (s) every inclination measurement has been gated.
+        acc_rejected_time: T,
+        /// Time since initialisation, s.
+        age: T,
+        field: FieldReference<T>,
+        initialized: T::Mask,
+        mag_disturbed: T::Mask,
+    }
+}
+
+lane_state! {
+    /// The parameters in the filter's precision, converted once at construction (per lane:
+    /// lanes may run with different parameters). Names follow [`SqrtEskfParams`]; `*_var` are
+    /// squared densities, `*2` squared thresholds.
+    struct Coefficients<T: Lane> {
+        gyr_noise: T,
+        bias_walk: T,
+        tau_acc: T,
+        acc_var: T,
+        acc_gate: T,
+        acc_reject_time: T,
+        /// `startup_time`, at least 1 µs (it divides).
+        startup_time: T,
+        reacquire_std: T,
+        rest_tau: T,
+        rest_gyr2: T,
+        rest_acc2: T,
+        rest_time: T,
+        rest_var: T,
+        init_bias_std: T,
+        init_tilt_std: T,
+        heading_walk_var: T,
+        heading_rate_var: T,
+        mag_var: T,
+        mag_norm_th: T,
+        mag_dip_th: T,
+        mag_ref_tau: T,
+        mag_new_time: T,
+        mag_reject_time: T,
+    }
+}
+
+impl<T: Lane> Coefficients<T> {
+    fn new(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
+        Self {
+            gyr_noise: p.coef(|p| p.gyr_noise),
+            bias_walk: p.coef(|p| p.bias_walk),
+            tau_acc: p.coef(|p| p.tau_acc),
+            acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
+            acc_gate: p.coef(|p| p.acc_gate),
+            acc_reject_time: p.coef(|p| p.acc_reject_time),
+            startup_time: p.coef(|p| p.startup_time.max(1e-6)),
+            reacquire_std: p.coef(|p| p.reacquire_std),
+            rest_tau: p.coef(|p| p.rest_tau),
+            rest_gyr2: p.coef(|p| p.rest_gyr * p.rest_gyr),
+            rest_acc2: p.coef(|p| p.rest_acc * p.rest_acc),
+            rest_time: p.coef(|p| p.rest_time),
+            rest_var: p.coef(|p| p.rest_noise * p.rest_noise),
+            init_bias_std: p.coef(|p| p.init_bias_std),
+            init_tilt_std: p.coef(|p| p.init_tilt_std),
+            heading_walk_var: p.coef(|p| p.heading_walk * p.heading_walk),
+            heading_rate_var: p.coef(|p| p.heading_rate_noise * p.heading_rate_noise),
+            mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
+            mag_norm_th: p.coef(|p| p.mag_norm_th),
+            mag_dip_th: p.coef(|p| p.mag_dip_th),
+            mag_ref_tau: p.coef(|p| p.mag_ref_tau),
+            mag_new_time: p.coef(|p| p.mag_new_time),
+            mag_reject_time: p.coef(|p| p.mag_reject_time),
+        }
+    }
+
+    /// The covariance factor right after initialisation.
+    fn initial_factor(&self) -> Mat<T, 6, 6> {
+        let mut s = Mat::zeros();
+        s.m[0][0] = self.init_tilt_std;
+        s.m[1][1] = self.init_tilt_std;
+        // The 6D heading error is unobservable: its variance only bookkeeps the drift.
+        s.m[2][2] = T::from_f64(0.1);
+        for i in 3..6 {
+            s.m[i][i] = self.init_bias_std;
+        }
+        s
+    }
 }
 
 /// Square-root multiplicative error-state Kalman filter (see the module documentation).
 ///
-/// State: `q_gyr` (strapdown, quasi-inertial frame), `c` (earth-frame correction, so
-/// `q6 = c ⊗ q_gyr`), heading offset `δ` (rad, `q9 = qz(δ) ⊗ q6`), bias `b̂` (rad/s, sensor
-/// frame), covariance factor `S` of `[δθ (earth frame, rad), δb (rad/s)]`.
+/// State: the strapdown quaternion (quasi-inertial frame), the earth-frame correction `c`
+/// (`q6 = c ⊗ q_strapdown`), the heading offset `δ` (rad, `q9 = qz(δ) ⊗ q6`), the bias `b̂`
+/// (rad/s, sensor frame) and the covariance factor `S` of `[δθ (earth frame, rad), δb (rad/s)]`.
 #[derive(Clone, Debug)]
 pub struct SqrtEskf<T: Lane> {
-    q_gyr: Quat<T>,
-    c: Quat<T>,
-    delta: T,
-    delta_var: T,
-    bias: Vec3<T>,
-    s: Mat<T, 6, 6>,
-    /// Low-passed specific force in the `I` frame, m/s².
-    acc_lp: Vec3<T>,
-    /// First stage of the two-stage low-pass (equal to `acc_lp` with one stage).
-    acc_lp1: Vec3<T>,
-    rot_lp1: Mat<T, 3, 3>,
-    /// Low-passed sensor-to-`I` rotation matrix (for the lag term of `H`).
-    rot_lp: Mat<T, 3, 3>,
-    /// Rest detection: low-passed gyro (rad/s) and accelerometer (m/s², sensor frame).
-    rest_gyr_lp: Vec3<T>,
-    rest_acc_lp: Vec3<T>,
-    rest_timer: T,
-    acc_rejected_time: T,
-    /// Time since initialisation, s.
-    age: T,
-    field: FieldRef<T>,
-    initialized: T::Mask,
-    mag_disturbed: T::Mask,
-    p: SqrtEskfParams,
+    state: State<T>,
+    coef: Coefficients<T>,
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
 }
 
 impl<T: Lane> SqrtEskf<T> {
-    /// A filter with the given parameters.
+    /// A filter with the given parameters in every lane.
     pub fn new(p: &SqrtEskfParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters (see [`LaneParams`]); `dof` and
+    /// the screening limits are those of the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
+        let coef = Coefficients::new(p);
+        let zero = T::zero();
         Self {
-            q_gyr: Quat::identity(),
-            c: Quat::identity(),
-            delta: T::zero(),
-            delta_var: T::one(),
-            bias: Vec3::zero(),
-            s: initial_factor(p),
-            acc_lp: Vec3::new(T::zero(), T::zero(), T::one()),
-            acc_lp1: Vec3::new(T::zero(), T::zero(), T::one()),
-            rot_lp1: Mat::identity(),
-            rot_lp: Mat::identity(),
-            rest_gyr_lp: Vec3::zero(),
-            rest_acc_lp: Vec3::zero(),
-            rest_timer: T::zero(),
-            acc_rejected_time: T::zero(),
-            age: T::zero(),
-            field: FieldRef {
-                norm: T::zero(),
-                dip: T::zero(),
-                cand_norm: T::zero(),
-                cand_dip: T::zero(),
-                cand_time: T::zero(),
-                rejected_time: T::zero(),
+            state: State {
+                strapdown: Quat::identity(),
+                correction: Quat::identity(),
+                heading_offset: zero,
+                heading_offset_var: T::one(),
+                bias: Vec3::zero(),
+                factor: coef.initial_factor(),
+                acc_lp: Vec3::new(zero, zero, T::one()),
+                acc_lp1: Vec3::new(zero, zero, T::one()),
+                rot_lp1: Mat::identity(),
+                rot_lp: Mat::identity(),
+                rest_gyr_lp: Vec3::zero(),
+                rest_acc_lp: Vec3::zero(),
+                rest_timer: zero,
+                acc_rejected_time: zero,
+                age: zero,
+                field: FieldReference {
+                    norm: zero,
+                    dip: zero,
+                    candidate_norm: zero,
+                    candidate_dip: zero,
+                    candidate_time: zero,
+                    rejected_time: zero,
+                },
+                initialized: <T::Mask as Mask>::splat(false),
+                mag_disturbed: <T::Mask as Mask>::splat(false),
             },
-            initialized: <T::Mask as Mask>::splat(false),
-            mag_disturbed: <T::Mask as Mask>::splat(false),
-            p: p.clone(),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            coef,
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }
 
     /// The 6D orientation (gravity and gyro only; heading drifts), sensor to earth.
     pub fn quat6(&self) -> Quat<T> {
-        (self.c * self.q_gyr).normalize()
+        (self.state.correction * self.state.strapdown).normalize()
     }
 
     /// The 9D orientation (heading from the magnetometer), sensor to earth.
     pub fn quat9(&self) -> Quat<T> {
-        (Quat::from_heading(self.delta) * self.c * self.q_gyr).normalize()
+        let st = &self.state;
+        (Quat::from_heading(st.heading_offset) * st.correction * st.strapdown).normalize()
     }
 
     /// The covariance factor `S` (lower triangular after each time update) of the error
     /// state `[δθ (rad, earth frame of q6), δb (rad/s, sensor frame)]`: `P = S·Sᵀ`.
     pub fn covariance_factor(&self) -> &Mat<T, 6, 6> {
-        &self.s
+        &self.state.factor
     }
 
     /// The error-state covariance `P = S·Sᵀ` (symmetric PSD by construction).
     pub fn covariance(&self) -> Mat<T, 6, 6> {
-        self.s * self.s.transpose()
+        self.state.factor * self.state.factor.transpose()
     }
 
     /// The attitude-error covariance (rad², earth frame) of the estimate returned by
@@ -306,24 +411,24 @@ impl<T: Lane> SqrtEskf<T> {
                 a.m[i][2] = T::zero();
                 a.m[2][i] = T::zero();
             }
-            a.m[2][2] = self.delta_var;
+            a.m[2][2] = self.state.heading_offset_var;
         }
         a
     }
 
     /// Per lane: the sensor is currently detected at rest.
     pub fn at_rest(&self) -> T::Mask {
-        self.rest_timer.simd_ge(T::from_f64(self.p.rest_time))
+        self.state.rest_timer.simd_ge(self.coef.rest_time)
     }
 
     /// Per lane: the last magnetometer sample was rejected as disturbed (9D only).
     pub fn mag_disturbed(&self) -> T::Mask {
-        self.mag_disturbed
+        self.state.mag_disturbed
     }
 
     /// Heading offset `δ` (rad) that the magnetometer adds to the 6D estimate.
     pub fn heading_offset(&self) -> T {
-        self.delta
+        self.state.heading_offset
     }
 
     /// Square-root time update: `S ← tria([F·S, G·Q^½])` with `F = [[I, −R·dt], [0, I]]`,
@@ -332,7 +437,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// (start-up and re-acquisition).
     fn time_update(&mut self, r: &Mat<T, 3, 3>, dt: T, extra_tilt_std: T, extra_bias_std: T) {
         let mut a = [[T::zero(); 12]; 6];
-        let s = &self.s;
+        let s = &self.state.factor;
         for i in 0..6 {
             for j in 0..6 {
                 let mut v = s.m[i][j];
@@ -346,8 +451,8 @@ impl<T: Lane> SqrtEskf<T> {
             }
         }
         let sdt = dt.sqrt();
-        let qt = T::from_f64(self.p.gyr_noise) * sdt;
-        let qb = T::from_f64(self.p.bias_walk) * sdt;
+        let qt = self.coef.gyr_noise * sdt;
+        let qb = self.coef.bias_walk * sdt;
         for i in 0..3 {
             a[i][6 + i] = qt;
             a[3 + i][9 + i] = qb;
@@ -359,14 +464,14 @@ impl<T: Lane> SqrtEskf<T> {
         for i in 0..3 {
             a[3 + i][9 + i] = (qb * qb + extra_bias_std * extra_bias_std).sqrt();
         }
-        self.s = triangularize(a);
+        self.state.factor = triangularize(a);
     }
 
     /// Potter's square-root scalar update with measurement row `h`, innovation `nu` and
     /// variance `r`, applied where `apply`; the χ² gate (`gate` standard deviations) is
-    /// tested here. Returns (state correction `δx`, lanes accepted, lanes gated).
+    /// tested here. Returns (state correction `δx`, lanes accepted).
     fn potter(&mut self, h: [T; 6], nu: T, r: T, gate: T, apply: T::Mask) -> ([T; 6], T::Mask) {
-        let s = &self.s;
+        let s = &self.state.factor;
         let f: [T; 6] = core::array::from_fn(|j| {
             let mut v = T::zero();
             for (i, hi) in h.iter().enumerate() {
@@ -397,7 +502,7 @@ impl<T: Lane> SqrtEskf<T> {
             }
         }
         let accept = accept & s_new.is_finite();
-        self.s = Mat::select(accept, &s_new, &self.s);
+        self.state.factor = Mat::select(accept, &s_new, &self.state.factor);
         let dx = core::array::from_fn(|i| T::select(accept, sf[i] * inv_alpha * nu, T::zero()));
         (dx, accept)
     }
@@ -405,137 +510,160 @@ impl<T: Lane> SqrtEskf<T> {
     /// Injects an error-state correction into `c` and `b̂` (then the error is zero again).
     fn inject(&mut self, dx: [T; 6]) {
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
-        self.c = (Quat::from_rotation_vector(dtheta) * self.c).normalize();
-        self.bias += Vec3::new(dx[3], dx[4], dx[5]);
+        self.state.correction =
+            (Quat::from_rotation_vector(dtheta) * self.state.correction).normalize();
+        self.state.bias += Vec3::new(dx[3], dx[4], dx[5]);
     }
 
-    fn update_inner(&mut self, s: &Screened<T>) {
-        // A copy of the (plain f64) parameters, so `self` can be borrowed mutably below.
-        let p = &self.p.clone();
-        let zero = T::zero();
-        let one = T::one();
-        let dt = s.dt;
-        let acc_raw = s.acc * s.acc_norm;
-
-        // Initialisation from the first usable sample: inclination from gravity, heading
-        // offset from the magnetometer, low-passes seeded with the sample.
-        let fresh = !self.initialized & s.acc_ok;
+    /// Initialisation from the first usable sample: inclination from gravity, heading
+    /// offset from the magnetometer, low-passes seeded with the sample. Returns the lanes
+    /// that started with this sample.
+    fn initialise(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
+        let st = &mut self.state;
+        let fresh = !st.initialized & s.acc_ok;
         // Every assignment below is a per-lane select on `fresh`: skipping the block when no
         // lane starts changes no result and saves the work on every later sample.
         if fresh.any() {
+            let zero = T::zero();
+            let one = T::one();
             let (tilt, _) = tilt_from_acc(s.acc);
-            self.c = Quat::select(fresh, tilt, self.c);
-            self.q_gyr = Quat::select(fresh, Quat::identity(), self.q_gyr);
-            self.acc_lp = Vec3::select(fresh, acc_raw, self.acc_lp);
-            self.rot_lp = Mat::select(fresh, &Mat::identity(), &self.rot_lp);
-            self.acc_lp1 = Vec3::select(fresh, acc_raw, self.acc_lp1);
-            self.rot_lp1 = Mat::select(fresh, &Mat::identity(), &self.rot_lp1);
-            self.rest_acc_lp = Vec3::select(fresh, acc_raw, self.rest_acc_lp);
-            self.rest_gyr_lp = Vec3::select(fresh, s.gyr, self.rest_gyr_lp);
+            st.correction = Quat::select(fresh, tilt, st.correction);
+            st.strapdown = Quat::select(fresh, Quat::identity(), st.strapdown);
+            st.acc_lp = Vec3::select(fresh, acc_raw, st.acc_lp);
+            st.rot_lp = Mat::select(fresh, &Mat::identity(), &st.rot_lp);
+            st.acc_lp1 = Vec3::select(fresh, acc_raw, st.acc_lp1);
+            st.rot_lp1 = Mat::select(fresh, &Mat::identity(), &st.rot_lp1);
+            st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
+            st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
             let (psi, psi_ok) = magnetic_heading_error(tilt, s.mag);
             let mag_fresh = fresh & s.mag_ok & psi_ok;
-            self.delta = T::select(mag_fresh, psi, T::select(fresh, zero, self.delta));
+            st.heading_offset =
+                T::select(mag_fresh, psi, T::select(fresh, zero, st.heading_offset));
             let h = tilt.rotate(s.mag);
             let dip = (-h.z).clamp(-one, one).asin();
-            let f = &mut self.field;
+            let f = &mut st.field;
             f.norm = T::select(mag_fresh, s.mag_norm, f.norm);
             f.dip = T::select(mag_fresh, dip, f.dip);
-            f.cand_norm = T::select(mag_fresh, s.mag_norm, f.cand_norm);
-            f.cand_dip = T::select(mag_fresh, dip, f.cand_dip);
-            self.s = Mat::select(fresh, &initial_factor(p), &self.s);
-            self.bias = Vec3::select(fresh, Vec3::zero(), self.bias);
-            self.age = T::select(fresh, zero, self.age);
-            self.delta_var = T::select(fresh, T::from_f64(0.25), self.delta_var);
-            self.initialized |= fresh;
+            f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
+            f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
+            st.factor = Mat::select(fresh, &self.coef.initial_factor(), &st.factor);
+            st.bias = Vec3::select(fresh, Vec3::zero(), st.bias);
+            st.age = T::select(fresh, zero, st.age);
+            st.heading_offset_var = T::select(fresh, T::from_f64(0.25), st.heading_offset_var);
+            st.initialized |= fresh;
         }
+        fresh
+    }
 
-        // Rest detection (deviation of gyro and accelerometer from their own low-pass).
-        let k_rest = lowpass_gain(dt, T::from_f64(p.rest_tau));
-        self.rest_gyr_lp += (s.gyr - self.rest_gyr_lp) * k_rest;
-        let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, self.rest_acc_lp);
-        self.rest_acc_lp += (acc_for_rest - self.rest_acc_lp) * k_rest;
-        let gyr_dev = (s.gyr - self.rest_gyr_lp).norm_squared();
-        let acc_dev = (acc_for_rest - self.rest_acc_lp).norm_squared();
+    /// Rest detection: deviation of gyro and accelerometer from their own low-pass, and a
+    /// small bias-corrected low-passed rate. Returns the lanes at rest.
+    fn detect_rest(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
+        let c = &self.coef;
+        let st = &mut self.state;
+        let k_rest = lowpass_gain(s.dt, c.rest_tau);
+        st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
+        let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
+        st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
+        let gyr_dev = (s.gyr - st.rest_gyr_lp).norm_squared();
+        let acc_dev = (acc_for_rest - st.rest_acc_lp).norm_squared();
         // A slow constant-rate turn has a small deviation too: the bias-corrected low-passed
         // rate must also be small (a rotating sensor is not at rest).
-        let rest_gyr2 = T::from_f64(p.rest_gyr * p.rest_gyr);
-        let turning = (self.rest_gyr_lp - self.bias)
+        let turning = (st.rest_gyr_lp - st.bias)
             .norm_squared()
-            .simd_gt(rest_gyr2);
-        let still = gyr_dev.simd_le(rest_gyr2)
-            & !turning
-            & acc_dev.simd_le(T::from_f64(p.rest_acc * p.rest_acc))
-            & s.acc_ok;
-        self.rest_timer = T::select(still, self.rest_timer + dt, zero);
-        let rest = self.at_rest();
+            .simd_gt(c.rest_gyr2);
+        let still =
+            gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2) & s.acc_ok;
+        st.rest_timer = T::select(still, st.rest_timer + s.dt, T::zero());
+        self.at_rest()
+    }
 
-        // Strapdown propagation of the quasi-inertial frame with the bias-corrected rate.
-        let w = s.gyr - self.bias;
-        self.q_gyr = (self.q_gyr * Quat::from_rotation_vector(w * dt)).normalize();
-        let r6 = (self.c * self.q_gyr).to_rotation_matrix();
+    /// Strapdown propagation and the square-root time update (with re-acquisition and
+    /// start-up inflation). Returns (bias-corrected rate, rad/s; growth of the 6D heading
+    /// variance, rad²; lanes in the start-up phase).
+    fn propagate(&mut self, s: &Screened<T>) -> (Vec3<T>, T, T::Mask) {
+        let zero = T::zero();
+        let dt = s.dt;
+        let w = s.gyr - self.state.bias;
+        self.state.strapdown =
+            (self.state.strapdown * Quat::from_rotation_vector(w * dt)).normalize();
+        let r6 = (self.state.correction * self.state.strapdown).to_rotation_matrix();
 
-        // Square-root time update (with re-acquisition inflation where gating timed out).
         // A gate timing out means the model is wrong (wrong start, a bias step): re-inflate
         // the inclination and the bias covariance. During the start-up phase the inclination
         // covariance is inflated continuously (in total by `reacquire_std²`) so a wrong first
         // sample is corrected by the attitude, not absorbed by the bias.
-        let reacquire = self
-            .acc_rejected_time
-            .simd_gt(T::from_f64(p.acc_reject_time));
-        let startup_t = T::from_f64(p.startup_time.max(1e-6));
-        let starting = self.age.simd_lt(startup_t);
-        let reacq_std = T::from_f64(p.reacquire_std);
+        let c = self.coef;
+        let reacquire = self.state.acc_rejected_time.simd_gt(c.acc_reject_time);
+        let starting = self.state.age.simd_lt(c.startup_time);
         let extra = T::select(
             reacquire,
-            reacq_std,
-            T::select(starting, reacq_std * (dt / startup_t).sqrt(), zero),
+            c.reacquire_std,
+            T::select(
+                starting,
+                c.reacquire_std * (dt / c.startup_time).sqrt(),
+                zero,
+            ),
         );
-        let extra_b = T::select(reacquire, T::from_f64(p.init_bias_std), zero);
-        self.age += dt;
+        let extra_b = T::select(reacquire, c.init_bias_std, zero);
+        self.state.age += dt;
         // The 9D heading offset must follow the 6D heading drift: its variance grows by
         // what the time update adds to the 6D heading variance (gyro noise and the
         // earth-vertical bias uncertainty), plus `heading_walk` for magnetic model errors.
-        let pzz_before = row_norm2(&self.s, 2);
+        let pzz_before = row_norm2(&self.state.factor, 2);
         self.time_update(&r6, dt, extra, extra_b);
-        let heading_growth = (row_norm2(&self.s, 2) - pzz_before).max(zero);
-        self.acc_rejected_time = T::select(reacquire, zero, self.acc_rejected_time);
+        let heading_growth = (row_norm2(&self.state.factor, 2) - pzz_before).max(zero);
+        self.state.acc_rejected_time = T::select(reacquire, zero, self.state.acc_rejected_time);
+        (w, heading_growth, starting)
+    }
 
-        // Low-pass of the specific force and of the rotation in the I frame.
+    /// Low-pass of the specific force and of the rotation in the quasi-inertial frame.
+    /// Returns the low-pass time constant τ, s.
+    fn lowpass_acc(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T {
+        let st = &mut self.state;
         // The low-pass time constant grows linearly over the start-up phase, so the first
         // seconds follow the accelerometer (and a wrong start is not frozen into the average).
-        let tau = T::from_f64(p.tau_acc) * (self.age / startup_t).min(T::one());
+        let tau = self.coef.tau_acc * (st.age / self.coef.startup_time).min(T::one());
         // Two equal first-order stages (τ/2 each): a critically damped second-order low-pass
         // whose mean delay is still τ, with −40 dB/decade above its corner.
-        let k_acc = lowpass_gain(dt, tau * T::from_f64(0.5));
-        let a_i = self.q_gyr.rotate(acc_raw);
-        let rg = self.q_gyr.to_rotation_matrix();
-        self.acc_lp1 = Vec3::select(
+        let k_acc = lowpass_gain(s.dt, tau * T::from_f64(0.5));
+        let a_i = st.strapdown.rotate(acc_raw);
+        let rg = st.strapdown.to_rotation_matrix();
+        st.acc_lp1 = Vec3::select(
             s.acc_ok,
-            self.acc_lp1 + (a_i - self.acc_lp1) * k_acc,
-            self.acc_lp1,
+            st.acc_lp1 + (a_i - st.acc_lp1) * k_acc,
+            st.acc_lp1,
         );
-        self.acc_lp = Vec3::select(
+        st.acc_lp = Vec3::select(
             s.acc_ok,
-            self.acc_lp + (self.acc_lp1 - self.acc_lp) * k_acc,
-            self.acc_lp,
+            st.acc_lp + (st.acc_lp1 - st.acc_lp) * k_acc,
+            st.acc_lp,
         );
-        self.rot_lp1 =
-            Mat::from_fn(|i, j| self.rot_lp1.m[i][j] + (rg.m[i][j] - self.rot_lp1.m[i][j]) * k_acc);
-        self.rot_lp = Mat::from_fn(|i, j| {
-            self.rot_lp.m[i][j] + (self.rot_lp1.m[i][j] - self.rot_lp.m[i][j]) * k_acc
+        st.rot_lp1 =
+            Mat::from_fn(|i, j| st.rot_lp1.m[i][j] + (rg.m[i][j] - st.rot_lp1.m[i][j]) * k_acc);
+        st.rot_lp = Mat::from_fn(|i, j| {
+            st.rot_lp.m[i][j] + (st.rot_lp1.m[i][j] - st.rot_lp.m[i][j]) * k_acc
         });
+        tau
+    }
 
-        // Inclination: two sequential scalar updates on the horizontal error components.
-        // The low-passed vector measures δθ + τ·R̄·δb with R̄ = R(c)·LP(R(q_gyr)): the
-        // exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
-        let r_acc = T::from_f64(p.acc_noise * p.acc_noise) / T::select(s.step, dt, one);
-        let gate = T::select(starting, T::from_f64(1e6), T::from_f64(p.acc_gate));
+    /// Inclination: two sequential scalar updates on the horizontal error components.
+    /// The low-passed vector measures δθ + τ·R̄·δb with R̄ = R(c)·LP(R(q_strapdown)): the
+    /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
+    fn correct_inclination(&mut self, s: &Screened<T>, tau: T, starting: T::Mask) {
+        let zero = T::zero();
+        let one = T::one();
+        let r_acc = self.coef.acc_var / T::select(s.step, s.dt, one);
+        let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
         let mut any_accept = <T::Mask as Mask>::splat(false);
         let mut applied = <T::Mask as Mask>::splat(false);
         for axis in 0..2 {
-            let rc = self.c.to_rotation_matrix();
-            let rbar = rc * self.rot_lp;
-            let (v, v_ok) = self.c.rotate(self.acc_lp).try_normalize();
+            let rc = self.state.correction.to_rotation_matrix();
+            let rbar = rc * self.state.rot_lp;
+            let (v, v_ok) = self
+                .state
+                .correction
+                .rotate(self.state.acc_lp)
+                .try_normalize();
             // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
             let sxy = (v.x * v.x + v.y * v.y).sqrt();
             let angle = sxy.atan2(v.z);
@@ -558,77 +686,89 @@ impl<T: Lane> SqrtEskf<T> {
         }
         let gated = applied & !any_accept;
         T::count(&mut self.rejections.gated, gated);
-        self.acc_rejected_time = T::select(gated, self.acc_rejected_time + dt, zero);
+        self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
+    }
 
-        // Bias at rest: the low-passed gyro measures b directly.
-        let r_rest = T::from_f64(p.rest_noise * p.rest_noise) / T::select(s.step, dt, one);
+    /// Bias at rest: the low-passed gyro measures `b` directly.
+    fn correct_bias_at_rest(&mut self, s: &Screened<T>, rest: T::Mask) {
+        let r_rest = self.coef.rest_var / T::select(s.step, s.dt, T::one());
         let big = T::from_f64(1e6);
         for k in 0..3 {
-            let mut h = [zero; 6];
-            h[3 + k] = one;
-            let z = self.rest_gyr_lp.to_array()[k] - self.bias.to_array()[k];
+            let mut h = [T::zero(); 6];
+            h[3 + k] = T::one();
+            let z = self.state.rest_gyr_lp.to_array()[k] - self.state.bias.to_array()[k];
             let (dx, _) = self.potter(h, z, r_rest, big, rest);
             self.inject(dx);
         }
+    }
 
-        // Heading offset from the magnetometer (9D).
-        if self.nine_d {
-            self.delta_var += (T::from_f64(p.heading_walk * p.heading_walk)
-                + T::from_f64(p.heading_rate_noise * p.heading_rate_noise) * w.norm_squared())
-                * dt
-                + heading_growth;
-            let q6 = self.quat6();
-            let h = q6.rotate(s.mag);
-            let dip = (-h.z).clamp(-one, one).asin();
-            let f = self.field;
-            let norm = s.mag_norm;
-            let norm_th = T::from_f64(p.mag_norm_th);
-            let dip_th = T::from_f64(p.mag_dip_th);
-            let matches = |rn: T, rd: T| {
-                (norm - rn).abs().simd_le(norm_th * rn) & (dip - rd).abs().simd_le(dip_th)
-            };
-            let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
-            let ok_cand = matches(f.cand_norm, f.cand_dip) & s.mag_ok;
-            let k_ref = lowpass_gain(dt, T::from_f64(p.mag_ref_tau));
-            let mut nf = f;
-            nf.cand_norm = T::select(ok_cand, f.cand_norm + (norm - f.cand_norm) * k_ref, norm);
-            nf.cand_dip = T::select(ok_cand, f.cand_dip + (dip - f.cand_dip) * k_ref, dip);
-            nf.cand_time = T::select(ok_cand, f.cand_time + dt, zero);
-            nf.norm = T::select(ok_ref, f.norm + (norm - f.norm) * k_ref, f.norm);
-            nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
-            let rejected = s.mag_ok & !ok_ref;
-            nf.rejected_time = T::select(rejected, f.rejected_time + dt, zero);
-            // Re-acquisition: a candidate stable for mag_new_time, or any stable candidate
-            // (≥ rest_time) once rejection has lasted mag_reject_time.
-            let adopt = rejected
-                & (nf.cand_time.simd_ge(T::from_f64(p.mag_new_time))
-                    | (nf.rejected_time.simd_ge(T::from_f64(p.mag_reject_time))
-                        & nf.cand_time.simd_ge(T::from_f64(p.rest_time))));
-            nf.norm = T::select(adopt, nf.cand_norm, nf.norm);
-            nf.dip = T::select(adopt, nf.cand_dip, nf.dip);
-            nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
-            let use_mag = (ok_ref | adopt) & s.mag_ok;
-            let select_field = |a: T, b: T| T::select(s.mag_ok, a, b);
-            self.field = FieldRef {
-                norm: select_field(nf.norm, f.norm),
-                dip: select_field(nf.dip, f.dip),
-                cand_norm: select_field(nf.cand_norm, f.cand_norm),
-                cand_dip: select_field(nf.cand_dip, f.cand_dip),
-                cand_time: select_field(nf.cand_time, f.cand_time),
-                rejected_time: select_field(nf.rejected_time, f.rejected_time),
-            };
-            self.mag_disturbed = rejected & !adopt;
-            T::count(&mut self.rejections.gated, self.mag_disturbed);
+    /// Heading offset from the magnetometer (9D): disturbance detection against the learned
+    /// field reference, re-acquisition of a new field, and the scalar heading update.
+    fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T, fresh: T::Mask) {
+        let zero = T::zero();
+        let one = T::one();
+        let dt = s.dt;
+        let c = self.coef;
+        self.state.heading_offset_var +=
+            (c.heading_walk_var + c.heading_rate_var * w.norm_squared()) * dt + heading_growth;
+        let q6 = self.quat6();
+        let h = q6.rotate(s.mag);
+        let dip = (-h.z).clamp(-one, one).asin();
+        let f = self.state.field;
+        let norm = s.mag_norm;
+        let matches = |rn: T, rd: T| {
+            (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
+        };
+        let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
+        let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
+        let k_ref = lowpass_gain(dt, c.mag_ref_tau);
+        let mut nf = f;
+        nf.candidate_norm = T::select(
+            ok_cand,
+            f.candidate_norm + (norm - f.candidate_norm) * k_ref,
+            norm,
+        );
+        nf.candidate_dip = T::select(
+            ok_cand,
+            f.candidate_dip + (dip - f.candidate_dip) * k_ref,
+            dip,
+        );
+        nf.candidate_time = T::select(ok_cand, f.candidate_time + dt, zero);
+        nf.norm = T::select(ok_ref, f.norm + (norm - f.norm) * k_ref, f.norm);
+        nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
+        let rejected = s.mag_ok & !ok_ref;
+        nf.rejected_time = T::select(rejected, f.rejected_time + dt, zero);
+        // Re-acquisition: a candidate stable for mag_new_time, or any stable candidate
+        // (≥ rest_time) once rejection has lasted mag_reject_time.
+        let adopt = rejected
+            & (nf.candidate_time.simd_ge(c.mag_new_time)
+                | (nf.rejected_time.simd_ge(c.mag_reject_time)
+                    & nf.candidate_time.simd_ge(c.rest_time)));
+        nf.norm = T::select(adopt, nf.candidate_norm, nf.norm);
+        nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
+        nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
+        let use_mag = (ok_ref | adopt) & s.mag_ok;
+        self.state.field = Select::select(s.mag_ok, &nf, &f);
+        self.state.mag_disturbed = rejected & !adopt;
+        T::count(&mut self.rejections.gated, self.state.mag_disturbed);
 
-            let q9 = Quat::from_heading(self.delta) * q6;
-            let (psi, psi_ok) = magnetic_heading_error(q9, s.mag);
-            let r_mag = T::from_f64(p.mag_noise * p.mag_noise) / T::select(s.step, dt, one);
-            let alpha = self.delta_var + r_mag;
-            let k = self.delta_var / alpha;
-            let apply = use_mag & psi_ok & !fresh;
-            self.delta = T::select(apply, (self.delta + k * psi).wrap_pi(), self.delta);
-            self.delta_var = T::select(apply, self.delta_var * (one - k), self.delta_var);
-        }
+        let st = &mut self.state;
+        let q9 = Quat::from_heading(st.heading_offset) * q6;
+        let (psi, psi_ok) = magnetic_heading_error(q9, s.mag);
+        let r_mag = c.mag_var / T::select(s.step, dt, one);
+        let alpha = st.heading_offset_var + r_mag;
+        let k = st.heading_offset_var / alpha;
+        let apply = use_mag & psi_ok & !fresh;
+        st.heading_offset = T::select(
+            apply,
+            (st.heading_offset + k * psi).wrap_pi(),
+            st.heading_offset,
+        );
+        st.heading_offset_var = T::select(
+            apply,
+            st.heading_offset_var * (one - k),
+            st.heading_offset_var,
+        );
     }
 }
 
@@ -658,18 +798,6 @@ fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
         v += x * x;
     }
     v
-}
-
-fn initial_factor<T: Lane>(p: &SqrtEskfParams) -> Mat<T, 6, 6> {
-    let mut s = Mat::zeros();
-    s.m[0][0] = T::from_f64(p.init_tilt_std);
-    s.m[1][1] = T::from_f64(p.init_tilt_std);
-    // The 6D heading error is unobservable: its variance only bookkeeps the drift.
-    s.m[2][2] = T::from_f64(0.1);
-    for i in 3..6 {
-        s.m[i][i] = T::from_f64(p.init_bias_std);
-    }
-    s
 }
 
 /// Lower-triangular `L` (non-negative diagonal) with `L·Lᵀ = A·Aᵀ`, by Householder
@@ -718,55 +846,24 @@ fn triangularize<T: Lane>(mut a: [[T; 12]; 6]) -> Mat<T, 6, 6> {
     l
 }
 
-/// Per-lane `if mask { a } else { b }` for the whole filter state.
-fn select_state<T: Lane>(mask: T::Mask, a: &SqrtEskf<T>, b: &SqrtEskf<T>) -> SqrtEskf<T> {
-    let sel = |x: T, y: T| T::select(mask, x, y);
-    SqrtEskf {
-        q_gyr: Quat::select(mask, a.q_gyr, b.q_gyr),
-        c: Quat::select(mask, a.c, b.c),
-        delta: sel(a.delta, b.delta),
-        delta_var: sel(a.delta_var, b.delta_var),
-        bias: Vec3::select(mask, a.bias, b.bias),
-        s: Mat::select(mask, &a.s, &b.s),
-        acc_lp: Vec3::select(mask, a.acc_lp, b.acc_lp),
-        acc_lp1: Vec3::select(mask, a.acc_lp1, b.acc_lp1),
-        rot_lp1: Mat::select(mask, &a.rot_lp1, &b.rot_lp1),
-        rot_lp: Mat::select(mask, &a.rot_lp, &b.rot_lp),
-        rest_gyr_lp: Vec3::select(mask, a.rest_gyr_lp, b.rest_gyr_lp),
-        rest_acc_lp: Vec3::select(mask, a.rest_acc_lp, b.rest_acc_lp),
-        rest_timer: sel(a.rest_timer, b.rest_timer),
-        acc_rejected_time: sel(a.acc_rejected_time, b.acc_rejected_time),
-        age: sel(a.age, b.age),
-        field: FieldRef {
-            norm: sel(a.field.norm, b.field.norm),
-            dip: sel(a.field.dip, b.field.dip),
-            cand_norm: sel(a.field.cand_norm, b.field.cand_norm),
-            cand_dip: sel(a.field.cand_dip, b.field.cand_dip),
-            cand_time: sel(a.field.cand_time, b.field.cand_time),
-            rejected_time: sel(a.field.rejected_time, b.field.rejected_time),
-        },
-        initialized: (mask & a.initialized) | (!mask & b.initialized),
-        mag_disturbed: (mask & a.mag_disturbed) | (!mask & b.mag_disturbed),
-        p: a.p.clone(),
-        nine_d: a.nine_d,
-        limits: a.limits,
-        // Counters are updated in place on `a` (counting is already per lane).
-        rejections: a.rejections,
-    }
-}
-
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         // Lanes that cannot step keep their whole state; lanes not yet initialised only
         // wait for a usable accelerometer.
-        let before = self.clone();
-        let before_init = self.initialized;
-        self.update_inner(&s);
-        let keep = s.step & (before_init | self.initialized);
-        let mut next = select_state(keep, self, &before);
-        next.rejections = self.rejections;
-        *self = next;
+        let before = self.state;
+        let acc_raw = s.acc * s.acc_norm;
+        let fresh = self.initialise(&s, acc_raw);
+        let rest = self.detect_rest(&s, acc_raw);
+        let (w, heading_growth, starting) = self.propagate(&s);
+        let tau = self.lowpass_acc(&s, acc_raw);
+        self.correct_inclination(&s, tau, starting);
+        self.correct_bias_at_rest(&s, rest);
+        if self.nine_d {
+            self.correct_heading(&s, w, heading_growth, fresh);
+        }
+        let keep = s.step & (before.initialized | self.state.initialized);
+        self.state = Select::select(keep, &self.state, &before);
     }
     fn quat(&self) -> Quat<T> {
         if self.nine_d {
@@ -776,7 +873,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         }
     }
     fn bias(&self) -> Vec3<T> {
-        self.bias
+        self.state.bias
     }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections

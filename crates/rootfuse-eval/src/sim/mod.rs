@@ -17,7 +17,7 @@
 //! `+g` along earth-up at rest), magnetic field by default 50 µT with a dip of 64°.
 //!
 //! ```
-//! use rootfuse_attitude::{metrics, sim};
+//! use rootfuse_eval::{metrics, sim};
 //! // 10 s of smooth rotation sampled at 100 Hz, seed 7.
 //! let rec = sim::scenario("slow-rotation", 7, 10.0, 100.0).unwrap();
 //! assert_eq!(rec.len(), 1000);
@@ -41,12 +41,12 @@ pub use sensor::{
 };
 pub use trajectory::{MotionState, Oscillation, Rotation, Segment, Trajectory, Vibration};
 
-use crate::quat::Quat;
-use crate::recording::Recording;
-use crate::vec3::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::Recording;
+use rootfuse_attitude::Vec3;
 use std::string::String;
 use std::vec;
 use std::vec::Vec;

@@ -12,7 +12,7 @@
 //! (a magnet in the room) or in the sensor frame (a magnet attached to the body).
 
 use super::SimError;
-use crate::vec3::Vec3;
+use rootfuse_attitude::Vec3;
 use std::vec::Vec;
 
 /// A 3×3 matrix, row-major (`m[row][col]`).

@@ -15,9 +15,9 @@
 //! ended (the wobble vanishes at segment ends).
 
 use super::SimError;
-use crate::quat::Quat;
-use crate::vec3::Vec3;
 use core::f64::consts::PI;
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::Vec3;
 use std::vec::Vec;
 
 /// A sinusoid per axis: `amplitude ⊙ sin(2π·freq_hz·τ + phase)`.

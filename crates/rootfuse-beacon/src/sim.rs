@@ -5,11 +5,11 @@
 use super::fuse::{FusionConfig, HeadingFusion, Pdr, wrap};
 use super::heading::{Fix, TrendConfig, heading_from_fixes, multilaterate, weak_heading};
 use super::{Beacon, BeaconClass, BeaconMap, BeaconSet, LogDistanceModel, Reading, Scanner};
-use crate::filters::{HeadingPipeline, HeadingPipelineParams};
-use crate::{ImuSample, OrientationFilter, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use rootfuse_attitude::filters::{HeadingPipeline, HeadingPipelineParams};
+use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Quat, Vec3};
 use std::vec::Vec;
 
 /// A zero-mean normal distribution of standard deviation `sd`; a negative or non-finite `sd`
@@ -68,7 +68,7 @@ pub struct WalkConfig {
     /// Magnetic declination, rad, east positive (default 0.087 ≈ 5°).
     pub declination: f64,
     /// The pipeline runs in 9D (disturbed magnetometer) or 6D (gyro heading) (default 6).
-    pub dof: u8,
+    pub dof: Dof,
     /// Beacon fixes also correct the PDR position (the source's "positioning correction")
     /// (default true).
     pub position_fixes: bool,
@@ -99,7 +99,7 @@ impl Default for WalkConfig {
             mag_noise: 0.5,
             mag_disturbance: 15.0,
             declination: 0.087,
-            dof: 6,
+            dof: Dof::Six,
             position_fixes: true,
         }
     }
@@ -351,7 +351,7 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
     };
     let params = HeadingPipelineParams {
         declination: cfg.declination,
-        dof: f64::from(cfg.dof),
+        dof: cfg.dof,
         ..HeadingPipelineParams::default()
     };
     let mut filter = HeadingPipeline::<f64>::new(&params);
@@ -407,7 +407,7 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
 
         let (psi_true, _) = q.heading_inclination();
         let raw = filter.heading();
-        let off = if cfg.dof == 6 {
+        let off = if cfg.dof == Dof::Six {
             *offset0.get_or_insert(wrap(psi_true - raw))
         } else {
             0.0

@@ -20,13 +20,13 @@ use super::sensor::{
 };
 use super::trajectory::{Oscillation, Segment, Trajectory, Vibration};
 use super::{GRAVITY, MAX_SAMPLES, STREAM_SETUP, SimError, Simulation, rng};
-use crate::quat::Quat;
-use crate::recording::Recording;
-use crate::vec3::Vec3;
 use core::f64::consts::PI;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::Recording;
+use rootfuse_attitude::Vec3;
 use std::string::ToString;
 use std::vec;
 use std::vec::Vec;

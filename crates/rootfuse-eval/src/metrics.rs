@@ -23,9 +23,9 @@
 //! look good by having its bad samples skipped); it is left out of the 6D offset so that one
 //! bad sample does not also shift the heading of all others.
 
-use crate::quat::Quat;
-use crate::recording::Recording;
 use core::f64::consts::PI;
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::Recording;
 use std::vec::Vec;
 
 /// How the estimate is aligned to the reference before errors are computed.

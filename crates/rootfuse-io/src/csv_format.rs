@@ -1,31 +1,8 @@
-//! Reading and writing recordings as CSV (the `broad_csv` format of `../shared/broad_csv`).
-//!
-//! # Format read
-//! One header line, comma separated, `.` decimal point, no quoting needed. Columns are found by
-//! name, so their order is free:
-//! - required: `t` (s, strictly increasing), `gx,gy,gz` (rad/s, sensor frame),
-//!   `ax,ay,az` (m/s², specific force, sensor frame);
-//! - optional: `mx,my,mz` (magnetometer, sensor frame; absent = a 6D recording),
-//!   `qw,qx,qy,qz` (ground truth, sensor to earth, ENU; `NaN` where unknown),
-//!   `use` (`0`/`1`, samples that count for error evaluation);
-//! - any other column is ignored.
-//!
-//! A group (`mx,my,mz` or `qw,qx,qy,qz`) is all or nothing: a partial group is an error, since
-//! a half-present magnetometer is a broken file rather than a 6D one.
-//!
-//! # Errors
-//! Every problem is a [`ReadError`] whose message names the file, the 1-based line and, where
-//! one cell is at fault, the column by name and 1-based index, so a user can go straight to it.
-//! Nothing in here panics on data.
-//!
-//! # Writing
-//! [`write_estimates`] and [`write_recording`] write to a temporary file beside the target and
-//! rename it into place, so a reader never sees a half-written file (rename is atomic within a
-//! file system).
+//! The CSV format of recordings and estimates: reader, writers, index, folder listing.
 
-use crate::quat::Quat;
-use crate::recording::Recording;
-use crate::vec3::Vec3;
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::Recording;
+use rootfuse_attitude::Vec3;
 use std::borrow::ToOwned;
 use std::fmt::Write as _;
 use std::format;

@@ -1,7 +1,7 @@
 //! Seed 001: complementary reconstruction [`complementary-reconstruction`].
 
 use super::complementary::tilt_correction;
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, nine_d, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{acc_mag_quat, coning_rotation_vector};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -11,24 +11,24 @@ params! {
     pub struct ComplementaryReconstructionParams {
         /// Length of the initial still period (usable time from the first sample) over which
         /// the gyro bias, the accelerometer statistics and the static maxima are taken.
-        still_s: 1.0, "s", [0.0, 10000.0];
+        still_s: f64 = 1.0, "s", [0.0, 10000.0];
         /// 1: two-sample coning correction of the rotation vector; 0: `Φ = ω·T`.
-        coning: 1.0, "1", [0.0, 1.0];
+        coning: bool = 1.0, "1", [0.0, 1.0];
         /// Motion parameter rule: 0 = the source's literal `|ωx|, |ωy|, |ωz|, |ax|, |ay|` (a
         /// level carrier); 1 = gravity removed: `|ω|` axes, `|‖a‖ − g|` and the horizontal
         /// specific force.
-        alpha_rule: 1.0, "1", [0.0, 1.0];
+        alpha_rule: u32 = 1.0, "1", [0.0, 1.0];
         /// A fixed blend weight α of the gyro quaternion in `[0, 1]`; negative: adaptive α.
-        alpha_fixed: -1.0, "1", [-1.0, 1.0];
+        alpha_fixed: f64 = -1.0, "1", [-1.0, 1.0];
         /// 1: subtract the still-period mean of ax and ay from the accelerometer (the source's
         /// offset correction, valid only if the carrier is level then); 0: do not.
-        acc_offsets: 0.0, "1", [0.0, 1.0];
+        acc_offsets: bool = 0.0, "1", [0.0, 1.0];
         /// Floor of the static gyro maximum `ω_static_max` (an ideal sensor reads 0 at rest).
-        min_static_rate: 0.01, "rad/s", [1e-9, 100.0];
+        min_static_rate: f64 = 0.01, "rad/s", [1e-9, 100.0];
         /// Floor of the static accelerometer maximum `a_static_max`.
-        min_static_acc: 0.05, "m/s²", [1e-9, 1000.0];
+        min_static_acc: f64 = 0.05, "m/s²", [1e-9, 1000.0];
         /// 9: heading from the magnetometer; 6: gravity only (heading from the gyroscope).
-        dof: 9.0, "1", [6.0, 9.0];
+        dof: Dof = 9.0, "1", [6.0, 9.0];
     }
 }
 
@@ -221,14 +221,14 @@ impl<T: Lane> ComplementaryReconstruction<T> {
             alpha: T::zero(),
             still: Still::new(),
             still_s: T::from_f64(p.still_s),
-            coning: p.coning > 0.5,
-            literal: p.alpha_rule < 0.5,
+            coning: p.coning,
+            literal: p.alpha_rule == 0,
             alpha_fixed: (p.alpha_fixed >= 0.0).then(|| T::from_f64(p.alpha_fixed)),
-            acc_offsets: p.acc_offsets > 0.5,
+            acc_offsets: p.acc_offsets,
             min_rate: T::from_f64(p.min_static_rate),
             min_acc: T::from_f64(p.min_static_acc),
-            nine_d: nine_d(p.dof),
-            limits: ScreenLimits::default(),
+            nine_d: p.dof.uses_magnetometer(),
+            limits: p.screen_limits(),
             rejections: Rejections::default(),
         }
     }
