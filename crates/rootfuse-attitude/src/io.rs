@@ -1,4 +1,4 @@
-//! Reading and writing recordings as CSV (the `broad_csv` format of `../shared/broad_csv`).
+//! Reading and writing recordings as CSV (the BROAD-as-CSV format of `docs/conventions.md`).
 //!
 //! # Format read
 //! One header line, comma separated, `.` decimal point, no quoting needed. Columns are found by

@@ -1,6 +1,6 @@
 //! Quaternions, conventions, building blocks and orientation filters over [`Lane`].
 //!
-//! # Conventions (the whole project; see `METHODS.md`)
+//! # Conventions (the whole project; see `docs/conventions.md` in the repository)
 //! - A quaternion is `q = [w, x, y, z]`, scalar first, Hamilton product (`i·j = k`), unit norm.
 //! - `q` rotates **sensor to earth**: `v_earth = q ⊗ v_sensor ⊗ q*`
 //!   ([`Quat::rotate`]); [`Quat::rotate_inverse`] goes earth to sensor.
