@@ -19,7 +19,7 @@ use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::io::read_dir;
 use std::path::PathBuf;
 
-/// VQF online total RMSE (degrees) on the four trials, 9D then 6D (../shared/broad_csv/README.md).
+/// VQF online total RMSE (degrees) on the four trials, 9D then 6D (the VQF rows of README.md).
 const VQF_9D: [f64; 4] = [1.38, 1.75, 0.74, 2.38];
 const VQF_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
 /// VQF online inclination RMSE (degrees; the same in 6D and 9D).

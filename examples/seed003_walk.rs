@@ -1,4 +1,4 @@
-//! Seed 003: heading and position error over 10-minute simulated walks, MEMS only vs with
+//! `heading-pipeline`: heading and position error over 10-minute simulated walks, MEMS only vs with
 //! beacons, printed as Markdown tables (one row per seed, then the means).
 //!
 //! ```sh

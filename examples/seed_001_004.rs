@@ -1,4 +1,4 @@
-//! Seeds 001 and 004 against their references on simulated scenarios: roll/pitch/yaw RMSE
+//! Two patent methods against their references on simulated scenarios: roll/pitch/yaw RMSE
 //! (degrees, f64, 9D and 6D, from 2 s on; 6D heading aligned at 2 s) per filter, averaged
 //! over seeds 1..=N at 100 Hz. `conv` runs the wrong-start motion of tests/filters.rs.
 //!

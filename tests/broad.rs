@@ -135,7 +135,7 @@ fn madgwick_against_reference() {
 }
 
 /// VQF online total RMSE (degrees) on the four trials, 9D and 6D
-/// (`../shared/broad_csv/README.md`, the numbers the flagship must beat).
+/// (the VQF rows of README.md's BROAD table, the numbers the flagship must beat).
 const VQF_ONLINE_9D: [f64; 4] = [1.38, 1.75, 0.74, 2.38];
 const VQF_ONLINE_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
 

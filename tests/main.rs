@@ -1,4 +1,4 @@
-//! The one integration-test binary of the workspace (see DESIGN.md: one binary links once).
+//! The one integration-test binary of the workspace (docs/architecture.md: one binary links once).
 // Lane-by-lane loops index several arrays with the same lane number; that reads best as `i`.
 #![allow(clippy::needless_range_loop)]
 mod batch;

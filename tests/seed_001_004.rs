@@ -1,5 +1,5 @@
-//! Seeds 001 (`complementary-reconstruction`) and 004 (`ecf-ekf`): the measured comparisons
-//! of /work/notes/seed001_004.md pinned, and method-specific checks.
+//! `complementary-reconstruction` and `ecf-ekf` (patent methods): the measured comparisons
+//! of the README pinned, and method-specific checks.
 //!
 //! Simulated numbers: f64, 100 Hz, 60 s, seeds 1..=4 averaged, roll/pitch/yaw RMSE in
 //! degrees from 2 s on (`metrics::euler_rmse`), the same set-up as
@@ -45,7 +45,7 @@ fn pin(what: &str, got: [f64; 3], want: [f64; 3]) {
     }
 }
 
-/// Seed 004's claim (static roll/pitch/yaw error 71 %/74 %/66 % below a plain EKF) is not
+/// The ECF-EKF claim (static roll/pitch/yaw error 71 %/74 %/66 % below a plain EKF) is not
 /// reproduced: on the static preset, 9D, `ecf-ekf` is 13 % lower in roll, equal in pitch
 /// and 15 % higher in yaw than our `ekf`; both are within 0.25° (tilt) and 1.5° (yaw) of the
 /// truth.
@@ -98,7 +98,7 @@ fn six_d_gravity_only() {
     pin("reconstruction slow 6D", cr, [0.285, 0.185, 0.362]);
 }
 
-/// Seed 001 against gyro-only and a fixed-α blend: far better than gyro-only everywhere, but
+/// Reconstruction vs gyro-only and a fixed-α blend: far better than gyro-only everywhere, but
 /// the adaptive α is worse than a fixed α = 0.99 (translation roll 9.27° vs 4.64°; fast
 /// rotation 0.71° vs 0.44°).
 #[test]

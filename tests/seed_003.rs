@@ -1,4 +1,4 @@
-//! Seed 003: declination, the heading pipeline's circular blend, the beacon model, map,
+//! The heading pipeline with iBeacons: declination, the circular blend, the beacon model, map,
 //! multilateration and the 10-minute simulated walk (MEMS only vs with beacons).
 use rootfuse_attitude::blocks::{
     magnetic_heading_error, tilt_compensated_heading, true_heading_error,
@@ -299,7 +299,7 @@ fn fusion_removes_offset_and_refuses_turns() {
 }
 
 /// The 10-minute walk in 6D (gyro heading, accumulated drift), seeds 0–4, beacons fused and
-/// beacon fixes on. Measured (notes/seed003.md): mean |final heading error| 69° MEMS only vs
+/// beacon fixes on. Measured (seed003_walk example): mean |final heading error| 69° MEMS only vs
 /// 0.5° with beacons, RMS 40° vs 0.9°, worst max position error 3.6 m with beacons vs 41 m
 /// MEMS only. Pinned: beacons cut the mean final and RMS errors by at least 10×, every walk's
 /// RMS with beacons below 3°, every max position error with beacons below 5 m.
@@ -345,6 +345,6 @@ fn walk_9d_disturbed_field_is_not_helped_in_heading() {
     }
     assert!(
         worse.to_degrees() > -3.0,
-        "beacons now help in 9D: update the notes ({worse})"
+        "beacons now help in 9D: update README.md ({worse})"
     );
 }

@@ -128,7 +128,7 @@ pub fn true_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>, declination: T) -> 
 /// Closed form for a level sensor at yaw `ψ0` in a field whose horizontal part points
 /// `declination` east of true north: returns `ψ0` (see the tests).
 ///
-/// Reading of the source (seed 003, S2): its sensor frame (X right, Y forward, Z up) is our
+/// Reading of the source (heading pipeline, S2): its sensor frame (X right, Y forward, Z up) is our
 /// sensor frame with ENU, so its "nose left positive" yaw is our counter-clockwise `ψ`. The
 /// source levels the magnetometer with the pitch and roll rotations from the accelerometer;
 /// here that levelling is the inclination quaternion of [`tilt_from_acc`] (the same angles

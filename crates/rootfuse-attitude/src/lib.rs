@@ -9,7 +9,7 @@
 //! forward–backward smoother ([`smooth`]); `nalgebra` adds conversions to and from nalgebra's
 //! types. Files live in `rootfuse-io`, metrics and the simulator in `rootfuse-eval`.
 //!
-//! # Conventions (the whole project; see `docs/conventions.md`)
+//! # Conventions (the whole project; see `docs/conventions.md` in the repository)
 //! - A quaternion is `q = [w, x, y, z]`, scalar first, Hamilton product (`i·j = k`), unit norm.
 //! - `q` rotates **sensor to earth**: `v_earth = q ⊗ v_sensor ⊗ q*`
 //!   ([`Quat::rotate`]); [`Quat::rotate_inverse`] goes earth to sensor.

@@ -230,10 +230,10 @@ registry! {
     Madgwick => "madgwick", Madgwick, MadgwickParams, "Madgwick gradient-descent filter with the correct magnetic reference.";
     Ekf => "ekf", Ekf, EkfParams, "7-state quaternion + gyro-bias EKF (the plain EKF reference).";
     SqrtEskf => "sqrt-eskf", SqrtEskf, SqrtEskfParams, "Flagship: square-root error-state KF, decoupled heading, rest/bias, magnetic rejection (alias `flagship`).";
-    EcfEkf => "ecf-ekf", EcfEkf, EcfEkfParams, "Seed 004: moving average, Mahony ECF with magnetometer, 7-state EKF observing the ECF quaternion.";
-    ComplementaryReconstruction => "complementary-reconstruction", ComplementaryReconstruction, ComplementaryReconstructionParams, "Seed 001: rotation-vector gyro update blended with the acc/mag quaternion by the motion parameter α.";
-    LsqFusion => "lsq-fusion", LsqFusion, LsqFusionParams, "Seed 000: LS quaternion fusion, gyro denoising by forgetting-factor LS, square-root RLS drift.";
-    HeadingPipeline => "heading-pipeline", HeadingPipeline, HeadingPipelineParams, "Seed 003 MEMS heading: smoothed accelerometer inclination, 2-state heading/bias Kalman filter, 0.96 circular blend, declination.";
+    EcfEkf => "ecf-ekf", EcfEkf, EcfEkfParams, "Patent method: moving average, Mahony ECF with magnetometer, 7-state EKF observing the ECF quaternion.";
+    ComplementaryReconstruction => "complementary-reconstruction", ComplementaryReconstruction, ComplementaryReconstructionParams, "Patent method: rotation-vector gyro update blended with the acc/mag quaternion by the motion parameter α.";
+    LsqFusion => "lsq-fusion", LsqFusion, LsqFusionParams, "Patent method: LS quaternion fusion, gyro denoising by forgetting-factor LS, square-root RLS drift.";
+    HeadingPipeline => "heading-pipeline", HeadingPipeline, HeadingPipelineParams, "Patent method, MEMS heading: smoothed accelerometer inclination, 2-state heading/bias Kalman filter, 0.96 circular blend, declination.";
 }
 
 /// A filter choice with its parameter values: build it for any lane type.

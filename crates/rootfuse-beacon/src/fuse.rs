@@ -179,7 +179,7 @@ impl HeadingFusion {
 /// variance; [`correct`](Self::correct) blends in a beacon fix by a Kalman update with the
 /// fix's covariance (taken isotropic, its mean diagonal).
 ///
-/// Step detection and step-length estimation are not part of seed 003: the caller supplies
+/// Step detection and step-length estimation are not part of the source method: the caller supplies
 /// steps and lengths (the simulator's are exact, so position errors come from heading and
 /// fixes only).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,4 +1,4 @@
-//! A seeded beacon-and-walk simulator and the seed 003 experiment: a walker loops a
+//! A seeded beacon-and-walk simulator and the beacon experiment: a walker loops a
 //! corridor (a rounded rectangle, left turns) for ten minutes with a phone held flat and
 //! forward; beacons line the corridor; the IMU, the scans and the steps are simulated.
 
@@ -281,7 +281,7 @@ pub struct WalkReport {
     pub models: [[f64; 2]; 2],
 }
 
-/// Runs the seed 003 experiment on one simulated walk: [`HeadingPipeline`] on the simulated
+/// Runs the beacon experiment on one simulated walk: [`HeadingPipeline`] on the simulated
 /// IMU (6D or 9D), PDR with its heading (MEMS only), and PDR with the beacon-fused heading
 /// (and beacon position fixes when `position_fixes`).
 ///

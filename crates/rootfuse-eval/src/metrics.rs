@@ -1,4 +1,4 @@
-//! The BROAD orientation error metrics (`../shared/broad_csv/README.md`), exactly as defined
+//! The BROAD orientation error metrics (`docs/conventions.md`), exactly as defined
 //! there; every evaluation in this project uses these.
 //!
 //! Per sample, with estimate `q_est` and reference `q_ref` (both sensor to earth, ENU):

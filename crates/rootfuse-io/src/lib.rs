@@ -5,7 +5,7 @@
 //! [`Recording`]s and estimates back into files.
 //!
 //! # CSV
-//! Reading and writing recordings as CSV (the BROAD CSV layout; see `docs/conventions.md` in the repository).
+//! Reading and writing recordings as CSV (the BROAD-as-CSV format of `docs/conventions.md` in the repository).
 //!
 //! # Format read
 //! One header line, comma separated, `.` decimal point, no quoting needed. Columns are found by

@@ -1,4 +1,4 @@
-//! Seed 001: complementary reconstruction [`complementary-reconstruction`].
+//! Complementary reconstruction (patent CN104101345B) [`complementary-reconstruction`].
 
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
@@ -32,7 +32,7 @@ params! {
     }
 }
 
-/// Seed 001: complementary reconstruction. Gyro propagation by the rotation vector,
+/// Complementary reconstruction (CN104101345B). Gyro propagation by the rotation vector,
 /// `Q(t_k) = Q'(t_{k−1}) ⊗ q(h)`, `q(h) = [cos(|Φ|/2), sin(|Φ|/2)·Φ/|Φ|]`; an observed
 /// quaternion `Q̂` from the accelerometer (pitch, roll) and the tilt-compensated magnetometer
 /// (heading) through the direction-cosine matrix; the reconstruction

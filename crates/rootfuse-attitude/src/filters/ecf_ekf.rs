@@ -1,4 +1,4 @@
-//! Seed 004: the quaternion EKF observing an explicit complementary filter [`ecf-ekf`].
+//! A quaternion EKF observing an explicit complementary filter (a patent) [`ecf-ekf`].
 
 use super::LaneParams;
 use super::ekf::State;
@@ -38,7 +38,7 @@ params! {
     }
 }
 
-/// Seed 004: pre-processing by a moving average, an explicit complementary filter (ECF,
+/// After Zheng et al. (patent, 2019): a moving average, an explicit complementary filter (ECF,
 /// Mahony) with accelerometer and magnetometer, and a 7-state EKF `x = [q0..q3, bx, by, bz]`
 /// that takes the ECF quaternion as its observation (`H = [I4, 0]`); the output is the EKF
 /// quaternion.

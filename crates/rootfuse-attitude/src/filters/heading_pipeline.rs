@@ -1,4 +1,4 @@
-//! Seed 003's MEMS heading pipeline (S1–S3) as a full-attitude filter [`heading-pipeline`].
+//! A patent's MEMS heading pipeline (S1–S3) as a full-attitude filter [`heading-pipeline`].
 
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
@@ -80,7 +80,7 @@ impl<T: Lane> VecChain<T> {
     }
 }
 
-/// Seed 003's MEMS heading (S1–S3), completed to a full quaternion:
+/// The MEMS heading of Ye et al. (S1–S3), completed to a full quaternion:
 /// `q = qz(ψ_MEMS) ⊗ q_incl`.
 ///
 /// - **Inclination** (the accelerometer path): gyro propagation, then a first-order

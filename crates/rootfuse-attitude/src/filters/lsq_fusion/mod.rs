@@ -1,4 +1,4 @@
-//! LS quaternion fusion (seed 000) [`lsq-fusion`]: gyro pre-processing, forgetting-factor
+//! LS quaternion fusion (a patent method) [`lsq-fusion`]: gyro pre-processing, forgetting-factor
 //! least-squares denoising, square-root RLS drift estimation, and the compensated quaternion
 //! fused with the accelerometer quaternion by least squares.
 
@@ -63,7 +63,7 @@ params! {
     }
 }
 
-/// The LS quaternion fusion of seed 000 (METHODS.md, "Seed 000").
+/// The LS quaternion fusion of Chen et al. (patent, 2019); see `docs/methods.md` in the repository.
 ///
 /// Per sample:
 /// 1. **Pre-processing** of each gyro axis: causal [`Hampel`] outlier replacement (window 5,
@@ -115,7 +115,7 @@ params! {
 ///   the field levelled with the accelerometer's tilt, and so the tilt and heading rows have
 ///   the same gain (`fusion_tau`).
 /// - Defaults were chosen on the simulated presets and the four BROAD trials (see the
-///   project notes, seed000.md); they are not the source's (it gives none).
+///   README's measured tables); they are not the source's (it gives none).
 #[derive(Clone, Debug)]
 pub struct LsqFusion<T: Lane> {
     hampel: [Hampel<T, 5>; 3],
