@@ -56,22 +56,25 @@
 //!
 //! | filter | `f32x8` | `f64x4` | `X2<f32x8>` |
 //! |---|---|---|---|
-//! | `gyro` | 116 | 184 | 112 |
-//! | `complementary` | 124 | 200 | 120 |
-//! | `mahony` | 148 | 248 | 144 |
-//! | `madgwick` | 136 | 224 | 132 |
-//! | `ekf` | 348 | 648 | 344 |
-//! | `sqrt-eskf` | 432 | 816 | 416 |
-//! | `complementary-reconstruction` | 292 | 536 | 286 |
-//! | `heading-pipeline` | 820 | 1448 | 792 |
-//! | `lsq-fusion` | 1224 | 2168 | 1192 |
-//! | `ecf-ekf` | 1708 | 3296 | 1686 |
-//! | any filter as `AnyFilter<L>` | 1708 | | |
+//! | `gyro` | 152 | 248 | 148 |
+//! | `complementary` | 160 | 264 | 156 |
+//! | `mahony` | 184 | 312 | 180 |
+//! | `madgwick` | 172 | 288 | 168 |
+//! | `ekf` | 384 | 712 | 380 |
+//! | `sqrt-eskf` | 588 | 1120 | 584 |
+//! | `complementary-reconstruction` | 328 | 600 | 322 |
+//! | `heading-pipeline` | 856 | 1512 | 828 |
+//! | `lsq-fusion` | 1260 | 2232 | 1228 |
+//! | `ecf-ekf` | 1744 | 3360 | 1722 |
+//! | any filter as `AnyFilter<L>` | 1744 | | |
 //!
-//! So a run-time typed Mahony batch would cost 1708 B per channel (the size of the largest
-//! variant, `ecf-ekf`); typed, it costs 148. Of those, 40 B are the five `u64` rejection
-//! counters (exact for any recording length, where an `f32` counter would stop at 2²⁴) and
-//! about 56 B the chunk's masking state and padding sample, amortised over the lanes.
+//! (The workspace test `state_bytes_are_the_filters_own` checks this table.) So a run-time
+//! typed Mahony batch would cost 1744 B per channel (the size of the largest variant,
+//! `ecf-ekf`); typed, it costs 184. Of those, 48 B are the six `u64` rejection counters
+//! (exact for any recording length, where an `f32` counter would stop at 2²⁴), 28 B the last
+//! sample's flags (seven masks), and about 56 B the chunk's masking state and padding sample,
+//! amortised over the lanes. Parameters are per-lane coefficients (so channels with
+//! different parameters share a chunk): the flagship's 23 cost 92 B per channel in `f32x8`.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and
 //! array-of-structs input ([`Batch::run_channels`], [`run_recordings`]) is packed into lanes

@@ -875,12 +875,21 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         self.state = Select::select(keep, &self.state, &before);
     }
     fn set_quat(&mut self, q: Quat<T>) {
-        // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`; a filter that
-        // has not started yet starts from `q` instead of the first accelerometer sample.
+        // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`. A running
+        // filter keeps `c` and moves the strapdown frame, so that the low-passed specific
+        // force, kept in the quasi-inertial frame, still points along gravity there; a filter
+        // that has not started yet starts from `q` instead of the first accelerometer sample.
+        let q = q.normalize();
         let st = &mut self.state;
-        st.correction = (q.normalize() * st.strapdown.conj()).normalize();
+        let moved = (st.correction.conj() * q).normalize();
+        let running = st.initialized;
+        st.strapdown = Quat::select(running, moved, Quat::identity());
+        st.correction = Quat::select(running, st.correction, q);
+        let r = st.strapdown.to_rotation_matrix();
+        st.rot_lp = Mat::select(running, &r, &st.rot_lp);
+        st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
         st.heading_offset = T::zero();
-        st.preset |= !st.initialized;
+        st.preset |= !running;
     }
     fn set_bias(&mut self, bias: Vec3<T>) -> bool {
         self.state.bias = bias;

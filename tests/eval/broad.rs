@@ -57,6 +57,10 @@ fn rmse(spec: &FilterSpec, rec: &Recording, dof: u8, f32_lanes: bool) -> Rmse {
 }
 
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn broad_rmse_is_pinned() {
     let Some(dir) = broad_dir() else { return };
     let recs: Vec<Recording> = TRIALS
@@ -98,6 +102,10 @@ fn broad_rmse_is_pinned() {
 
 /// f32 gives the same accuracy as f64 (within 0.5° total RMSE, the EKF 6D being the loosest).
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn broad_f32_matches_f64() {
     let Some(dir) = broad_dir() else { return };
     let rec = read_csv(dir.join(format!("{}.csv", TRIALS[1]))).unwrap();
@@ -123,6 +131,10 @@ fn broad_f32_matches_f64() {
 /// 9.62 and 4.36: trial 16 needs β ≥ 0.0525, trial 29 (a magnetic disturbance the filter does
 /// not detect) β ≤ 0.0525, so the margin is thin by construction.
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn madgwick_against_reference() {
     let Some(dir) = broad_dir() else { return };
     let mut spec = FilterSpec::new("madgwick").unwrap();
@@ -144,6 +156,10 @@ const VQF_ONLINE_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
 /// (`quat6`), which is what a 6D run computes (the magnetometer only moves the heading
 /// offset; tests/flagship.rs checks that it never tilts).
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn flagship_beats_vqf_online() {
     use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
     fn run<T: Lane>(rec: &Recording, to: impl Fn(f64) -> T, from: impl Fn(T) -> f64) -> [f64; 2] {
@@ -206,6 +222,10 @@ const VQF_OFFLINE_9D: [f64; 4] = [1.01, 1.71, 0.58, 1.81];
 /// The flagship smoothed forward-backward (`smooth::forward_backward`) beats VQF offline on
 /// every trial and the mean (9D, f64), and its RMSE is pinned (total, 9D; total, 6D).
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn flagship_offline_beats_vqf_offline() {
     use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
     use rootfuse_attitude::smooth::forward_backward;

@@ -654,6 +654,10 @@ fn metric_tiny_errors_are_resolved() {
 // ---------------------------------------------------------------- the real BROAD trials
 
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn reads_broad_trials_matching_index() {
     let Some(dir) = crate::common::broad_dir() else {
         return;

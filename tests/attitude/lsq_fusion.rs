@@ -242,6 +242,10 @@ fn against_complementary_on_simulations() {
 
 /// The same ratio on the four BROAD trials, 9D and 6D.
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn against_complementary_on_broad() {
     let Some(dir) = broad_dir() else { return };
     #[rustfmt::skip]

@@ -1,0 +1,224 @@
+//! Typed filter configuration: parameter kinds, 6D/9D, screening limits as parameters, state
+//! control (set quaternion, bias, heading) and per-sample flags, for every registered filter.
+use rootfuse_attitude::filters::{ParamError, ParamKind, SampleFlags};
+use rootfuse_attitude::registry::{FilterKind, FilterSpec, RegistryError};
+use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Quat, Vec3};
+
+fn level_sample() -> ImuSample<f64> {
+    ImuSample::new(
+        Vec3::zero(),
+        Vec3::new(0.0, 0.0, 9.81),
+        Vec3::new(0.0, 20.0, -40.0),
+    )
+}
+
+/// Every default is a value of its parameter's type, and `get` reads it back as listed.
+#[test]
+fn defaults_are_values_of_their_kind() {
+    for &kind in FilterKind::ALL {
+        let spec = FilterSpec::new(kind.name()).unwrap();
+        for info in kind.params() {
+            assert_eq!(
+                spec.get(info.name),
+                Some(info.default),
+                "{} {}",
+                kind.name(),
+                info.name
+            );
+            assert!(
+                (info.min..=info.max).contains(&info.default),
+                "{} {}",
+                kind.name(),
+                info.name
+            );
+        }
+        // The screening limits are parameters of every filter, never lane-varying.
+        for name in ["max_dt", "max_gyr"] {
+            let info = kind.params().iter().find(|i| i.name == name).unwrap();
+            assert!(!info.per_lane, "{} {name}", kind.name());
+        }
+    }
+}
+
+/// A whole number, a switch or `dof` given a value it does not take is refused, never rounded.
+#[test]
+fn fractions_and_wrong_kinds_are_refused() {
+    let wrong_kind = |name: &str, assignment: &str| {
+        let mut spec = FilterSpec::new(name).unwrap();
+        let before = spec.clone();
+        let err = spec.set(assignment).unwrap_err();
+        assert!(
+            matches!(err, RegistryError::Param(ParamError::WrongKind { .. })),
+            "{name} {assignment}: {err}"
+        );
+        assert_eq!(spec, before, "{name} {assignment}: nothing changed");
+        err.to_string()
+    };
+    assert!(wrong_kind("mahony", "dof=7").contains("6 or 9"));
+    assert!(wrong_kind("mahony", "dof=8").contains("6 or 9"));
+    assert!(wrong_kind("ecf-ekf", "window=2.5").contains("whole number"));
+    assert!(wrong_kind("gyro", "init_from_acc=0.5").contains("0 or 1"));
+    assert!(wrong_kind("complementary-reconstruction", "alpha_rule=0.3").contains("whole"));
+
+    let mut spec = FilterSpec::new("ecf-ekf").unwrap();
+    spec.set("window=3").unwrap();
+    assert_eq!(spec.get("window"), Some(3.0));
+    spec.set("dof=6").unwrap();
+    assert_eq!(spec.dof(), Some(Dof::Six));
+    assert!(!spec.uses_magnetometer());
+    // gyro never reads the magnetometer: no dof, whatever is asked.
+    let mut gyro = FilterSpec::new("gyro").unwrap();
+    gyro.set_dof(Dof::Nine).unwrap();
+    assert_eq!(gyro.dof(), None);
+    assert!(!gyro.uses_magnetometer());
+    // Every kind is listed as what it is.
+    let kind_of = |filter: &str, name: &str| {
+        FilterKind::from_name(filter)
+            .unwrap()
+            .params()
+            .iter()
+            .find(|i| i.name == name)
+            .unwrap()
+            .kind
+    };
+    assert_eq!(kind_of("mahony", "dof"), ParamKind::Dof);
+    assert_eq!(kind_of("ecf-ekf", "window"), ParamKind::Integer);
+    assert_eq!(kind_of("gyro", "init_from_acc"), ParamKind::Switch);
+    assert_eq!(kind_of("mahony", "kp"), ParamKind::Real);
+}
+
+/// `max_gyr` decides what a saturated gyroscope is: a 50 rad/s sample (about 2900 °/s) is
+/// skipped with the default 35 rad/s and used with `max_gyr=80`; `max_dt` likewise for gaps.
+#[test]
+fn screening_limits_are_parameters() {
+    for &kind in FilterKind::ALL {
+        let fast = ImuSample::new(
+            Vec3::new(0.0, 0.0, 50.0),
+            level_sample().acc,
+            level_sample().mag,
+        );
+        let mut default = FilterSpec::new(kind.name()).unwrap().build::<f64>();
+        default.update(&level_sample(), 0.01);
+        default.update(&fast, 0.01);
+        assert_eq!(default.rejections().gyr, [1], "{}", kind.name());
+        assert_eq!(
+            default.flags().bits(0) & SampleFlags::<f64>::GYR,
+            SampleFlags::<f64>::GYR
+        );
+
+        let mut spec = FilterSpec::new(kind.name()).unwrap();
+        spec.set("max_gyr=80").unwrap();
+        spec.set("max_dt=5").unwrap();
+        let mut wide = spec.build::<f64>();
+        wide.update(&level_sample(), 0.01);
+        wide.update(&fast, 0.01);
+        wide.update(&level_sample(), 2.0);
+        assert_eq!(wide.rejections().gyr, [0], "{}", kind.name());
+        assert_eq!(
+            wide.rejections().dt,
+            [0],
+            "{}: a 2 s gap within max_dt=5",
+            kind.name()
+        );
+        assert_eq!(wide.flags().bits(0) & 3, 0, "{}", kind.name());
+    }
+}
+
+/// Per-sample flags say what happened to that sample only: a NaN gyroscope skips the
+/// sample (bit 2), a zero accelerometer skips its correction (bit 4), the next good sample
+/// has neither; the counters agree.
+#[test]
+fn flags_describe_the_last_sample() {
+    for &kind in FilterKind::ALL {
+        let mut f = FilterSpec::new(kind.name()).unwrap().build::<f64>();
+        let name = kind.name();
+        f.update(&level_sample(), 0.01);
+        let mut bad_gyr = level_sample();
+        bad_gyr.gyr.x = f64::NAN;
+        f.update(&bad_gyr, 0.01);
+        assert_eq!(
+            f.flags().bits(0) & 0b1111,
+            SampleFlags::<f64>::GYR,
+            "{name}"
+        );
+        let mut no_acc = level_sample();
+        no_acc.acc = Vec3::zero();
+        f.update(&no_acc, 0.01);
+        assert_eq!(
+            f.flags().bits(0) & 0b1111,
+            SampleFlags::<f64>::ACC,
+            "{name}"
+        );
+        f.update(&level_sample(), -1.0);
+        assert_eq!(f.flags().bits(0) & 0b1111, SampleFlags::<f64>::DT, "{name}");
+        f.update(&level_sample(), 0.01);
+        assert_eq!(f.flags().bits(0) & 0b1111, 0, "{name}");
+        let r = f.rejections();
+        assert_eq!([r.dt[0], r.gyr[0], r.acc[0]], [1, 1, 1], "{name}");
+    }
+}
+
+/// set_quat makes the estimate that orientation at once, and the filter goes on from there;
+/// set_heading turns it about up only; set_bias is kept where the filter has a bias.
+#[test]
+fn state_control() {
+    let target = Quat::from_euler_zyx(0.7, 0.2, -0.1);
+    for &kind in FilterKind::ALL {
+        for dof in [Dof::Six, Dof::Nine] {
+            let name = format!("{} {dof}", kind.name());
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            let mut f = spec.build::<f64>();
+            f.update(&level_sample(), 0.01);
+            f.set_quat(target);
+            assert!(f.quat().angle_to(target) < 1e-9, "{name}: set_quat");
+
+            f.set_heading(-1.2);
+            let (heading, incl) = f.quat().heading_inclination();
+            let (_, target_incl) = target.heading_inclination();
+            assert!((heading + 1.2).abs() < 1e-9, "{name}: heading {heading}");
+            assert!(
+                incl.angle_to(target_incl) < 1e-9,
+                "{name}: inclination kept"
+            );
+
+            let bias = Vec3::new(0.01, -0.02, 0.005);
+            if f.set_bias(bias) {
+                assert_eq!(f.bias(), bias, "{name}: set_bias");
+            } else {
+                assert_eq!(f.bias(), Vec3::zero(), "{name}: no bias");
+            }
+            // The filter keeps running from there: the same orientation at rest stays put
+            // (within what one correction can move it).
+            let at_target = ImuSample::new(
+                Vec3::zero(),
+                f.quat().rotate_inverse(Vec3::new(0.0, 0.0, 9.81)),
+                f.quat().rotate_inverse(Vec3::new(0.0, 20.0, -40.0)),
+            );
+            let before = f.quat();
+            f.update(&at_target, 0.01);
+            assert!(
+                f.quat().angle_to(before) < 0.05,
+                "{name}: continues from the set state"
+            );
+        }
+    }
+}
+
+/// The flagship told its orientation before the first sample starts there: its first
+/// estimate is the set one (turned by one gyro step), not the accelerometer's.
+#[test]
+fn flagship_starts_from_a_preset_orientation() {
+    let preset = Quat::from_euler_zyx(1.0, 0.0, 0.0);
+    let mut spec = FilterSpec::new("sqrt-eskf").unwrap();
+    spec.set_dof(Dof::Six).unwrap();
+    let mut f = spec.build::<f64>();
+    f.set_quat(preset);
+    // Level and at rest: gravity agrees with the preset (whose heading is 1 rad).
+    f.update(&level_sample(), 0.01);
+    assert!(f.quat().angle_to(preset) < 1e-6, "{:?}", f.quat());
+    // Without the preset the 6D heading starts at zero.
+    let mut fresh = spec.build::<f64>();
+    fresh.update(&level_sample(), 0.01);
+    assert!(fresh.quat().angle_to(preset) > 0.9);
+}

@@ -1,0 +1,10 @@
+//! Quaternions, frames, pre-processing, the filters and their configuration.
+mod configuration;
+mod filters;
+mod flagship;
+mod frames;
+mod heading_pipeline;
+mod lsq_fusion;
+mod preprocess;
+mod quat;
+mod reconstruction_and_ecf_ekf;

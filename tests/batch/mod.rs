@@ -1,0 +1,2 @@
+//! The SIMD batch engine.
+mod engine;

@@ -1,0 +1,3 @@
+//! Evaluation: the BROAD recordings and metrics, the simulator.
+mod broad;
+mod sim;

@@ -1,0 +1,2 @@
+//! Reading and writing recordings and estimates.
+mod csv;

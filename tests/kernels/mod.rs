@@ -1,0 +1,3 @@
+//! The `Lane` trait and the small matrix kernels.
+mod lane;
+mod mat;

@@ -1,0 +1,3 @@
+//! Least squares: the recursive forms and the dense weighted solvers.
+mod dense;
+mod rls;
