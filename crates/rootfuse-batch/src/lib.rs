@@ -4,7 +4,7 @@
 //! Every registered filter of `rootfuse-attitude` runs here through
 //! [`AnyFilter<L>`](rootfuse_attitude::registry::AnyFilter): the same code as a scalar run,
 //! so each channel's result equals running it alone through `spec.build::<f32>()` (or `f64`)
-//! bit for bit (tested for every registered filter in the workspace's `tests/batch.rs`).
+//! bit for bit (tested for every registered filter in the workspace's `tests/batch/engine.rs`).
 //!
 //! ```
 //! use rootfuse_attitude::registry::FilterSpec;
