@@ -1,9 +1,9 @@
-//! Batch least squares (`rootfuse_lsq::batch`): NIST StRD linear regression known answers, the
+//! Batch least squares (`rootfuse_lsq::dense`): NIST StRD linear regression known answers, the
 //! Läuchli matrix, weights, rank detection, error reporting.
 
 use proptest::prelude::*;
-use rootfuse_lsq::batch::faer::{Col, Mat};
-use rootfuse_lsq::batch::{
+use rootfuse_lsq::dense::faer::{Col, Mat};
+use rootfuse_lsq::dense::{
     Input, LsqError, LsqReal, LsqSolution, Method, Options, RSquaredKind, SqrtInfoRls, Weights,
     solve,
 };

@@ -2,8 +2,8 @@
 //! multilateration.
 
 use super::{BeaconClass, BeaconError, BeaconId, BeaconMap, BeaconSet};
-use rootfuse_lsq::batch::faer::{Col, Mat};
-use rootfuse_lsq::batch::{Options, Weights, solve};
+use rootfuse_lsq::dense::faer::{Col, Mat};
+use rootfuse_lsq::dense::{Options, Weights, solve};
 use std::vec::Vec;
 
 /// The yaw (rad, counter-clockwise from north) of the direction from `from` to `to`

@@ -163,8 +163,8 @@ pub enum BeaconError {
     Lsq(std::string::String),
 }
 
-impl From<rootfuse_lsq::batch::LsqError> for BeaconError {
-    fn from(e: rootfuse_lsq::batch::LsqError) -> Self {
+impl From<rootfuse_lsq::dense::LsqError> for BeaconError {
+    fn from(e: rootfuse_lsq::dense::LsqError) -> Self {
         Self::Lsq(std::format!("{e}"))
     }
 }

@@ -1,8 +1,8 @@
 //! The log-distance path-loss model `RSSI(d) = A − 10·n·log10(d)` (S42).
 
 use super::BeaconError;
-use rootfuse_lsq::batch::faer::{Col, Mat};
-use rootfuse_lsq::batch::{Options, Weights, solve};
+use rootfuse_lsq::dense::faer::{Col, Mat};
+use rootfuse_lsq::dense::{Options, Weights, solve};
 
 /// `RSSI(d) = A − 10·n·log10(d)`: `A` the RSSI at 1 m (dBm), `n` the path-loss exponent.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -48,8 +48,8 @@
 //! # Example
 //!
 //! ```
-//! use rootfuse_lsq::batch::faer::{col, mat};
-//! use rootfuse_lsq::batch::{solve, Method, Options, Weights};
+//! use rootfuse_lsq::dense::faer::{col, mat};
+//! use rootfuse_lsq::dense::{solve, Method, Options, Weights};
 //!
 //! // z = 1 + 2 t, observed at t = 0, 1, 2, 3.
 //! let h = mat![[1.0, 0.0], [1.0, 1.0], [1.0, 2.0], [1.0, 3.0]];
@@ -65,18 +65,18 @@
 //! let w = col![1.0_f32, 1.0, 0.01, 1.0];
 //! let sol32 = solve(h32.as_ref(), z32.as_ref(), Weights::Diagonal(w.as_ref()), &Options::with_method(Method::Svd))?;
 //! assert!((sol32.estimate[1] - 2.0).abs() < 0.01);
-//! # Ok::<(), rootfuse_lsq::batch::LsqError>(())
+//! # Ok::<(), rootfuse_lsq::dense::LsqError>(())
 //! ```
 
 mod error;
 mod factor;
-mod large_rls;
 mod refine;
 mod scalar;
+mod sqrt_information_rls;
 
 pub use error::{Input, LsqError};
-pub use large_rls::SqrtInfoRls;
 pub use scalar::LsqReal;
+pub use sqrt_information_rls::SqrtInfoRls;
 
 /// The faer version this module is built on, so callers can build `MatRef`/`ColRef` arguments
 /// without a second, possibly mismatched, faer dependency.

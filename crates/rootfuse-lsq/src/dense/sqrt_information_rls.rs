@@ -23,8 +23,8 @@ use super::{Input, LsqError, LsqReal};
 /// # Example
 ///
 /// ```
-/// use rootfuse_lsq::batch::SqrtInfoRls;
-/// use rootfuse_lsq::batch::faer::Col;
+/// use rootfuse_lsq::dense::SqrtInfoRls;
+/// use rootfuse_lsq::dense::faer::Col;
 ///
 /// // A small linear congruential generator keeps the example free of dependencies.
 /// let mut state = 1u64;
@@ -42,7 +42,7 @@ use super::{Input, LsqError, LsqReal};
 /// }
 /// let x = rls.estimate();
 /// assert!((0..n).all(|j| (x[j] - truth[j]).abs() < 1e-6));
-/// # Ok::<(), rootfuse_lsq::batch::LsqError>(())
+/// # Ok::<(), rootfuse_lsq::dense::LsqError>(())
 /// ```
 #[derive(Clone, Debug)]
 pub struct SqrtInfoRls<T> {
