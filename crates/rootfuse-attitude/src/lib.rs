@@ -21,6 +21,8 @@
 extern crate std;
 
 #[cfg(feature = "std")]
+pub mod alignment;
+#[cfg(feature = "std")]
 pub mod beacon;
 pub mod blocks;
 pub mod filters;
