@@ -39,7 +39,7 @@
 //! A recording whose motion cannot separate the two rotations (no rotation at all, or for 6D
 //! no change of tilt) is an [`AlignError::NotExcited`], not a guess.
 
-use crate::metrics::{Alignment, error_heading};
+use crate::metrics::{Alignment, MetricsError, check, counted, error_heading};
 use crate::quat::Quat;
 use crate::recording::Recording;
 use crate::vec3::Vec3;
@@ -100,19 +100,9 @@ impl FrameAlignment {
 /// Why no alignment could be estimated.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum AlignError {
-    /// Estimate, truth and use mask differ in length.
-    #[error("length mismatch: {estimates} estimates, {truth} truth samples, {mask} use flags")]
-    Length {
-        /// Number of estimates.
-        estimates: usize,
-        /// Number of truth samples.
-        truth: usize,
-        /// Number of use flags.
-        mask: usize,
-    },
-    /// The recording has no ground truth.
-    #[error("the recording has no ground truth")]
-    NoTruth,
+    /// The inputs do not fit together (lengths) or there is no truth, as for the metrics.
+    #[error(transparent)]
+    Input(#[from] MetricsError),
     /// Too few samples count (use = 1, finite truth and estimate) to fit two rotations.
     #[error("{0} usable samples (use = 1, finite truth and estimate): too few to align")]
     TooFewSamples(usize),
@@ -140,17 +130,9 @@ pub fn align_frames(
     use_mask: Option<&[bool]>,
     mode: Alignment,
 ) -> Result<FrameAlignment, AlignError> {
-    let mask_len = use_mask.map_or(est.len(), <[bool]>::len);
-    if est.len() != truth.len() || mask_len != est.len() {
-        return Err(AlignError::Length {
-            estimates: est.len(),
-            truth: truth.len(),
-            mask: mask_len,
-        });
-    }
-    let finite = |q: &Quat<f64>| q.to_array().iter().all(|c| c.is_finite());
+    check(est, truth, use_mask)?;
     let (q, r): (Vec<Quat<f64>>, Vec<Quat<f64>>) = (0..est.len())
-        .filter(|&i| use_mask.is_none_or(|m| m[i]) && finite(&est[i]) && finite(&truth[i]))
+        .filter(|&i| counted(truth, use_mask, i) && est[i].to_array().iter().all(|c| c.is_finite()))
         .map(|i| (est[i].normalize(), truth[i].normalize()))
         .unzip();
     let six_d = mode == Alignment::SixD;
@@ -174,7 +156,7 @@ pub fn align_recording(
     est: &[Quat<f64>],
     mode: Alignment,
 ) -> Result<FrameAlignment, AlignError> {
-    let truth = rec.truth.as_deref().ok_or(AlignError::NoTruth)?;
+    let truth = rec.truth.as_deref().ok_or(MetricsError::NoTruth)?;
     align_frames(est, truth, rec.use_mask.as_deref(), mode)
 }
 
@@ -450,7 +432,7 @@ mod tests {
 
         /// 6D: a heading offset and any sensor-to-body rotation, to 0.01°.
         #[test]
-        fn recovers_heading_and_body_6d(psi in -3.14f64..3.14, body in rotation(), seed in 0u64..1000) {
+        fn recovers_heading_and_body_6d(psi in -core::f64::consts::PI..core::f64::consts::PI, body in rotation(), seed in 0u64..1000) {
             let earth = Quat::from_heading(psi);
             let (est, truth) = mocap("translation", seed, earth, body, 0.1);
             let a = align_frames(&est, &truth, None, Alignment::SixD).unwrap();

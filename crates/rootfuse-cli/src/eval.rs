@@ -102,24 +102,15 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
             // Every truth file must be scored: a mean over fewer files would not be the
             // dataset's.
             for t in list_dir(td).map_err(|e| e.to_string())? {
-                let e = ed.join(t.file_name().unwrap_or_default());
-                if !e.is_file() {
-                    return Err(format!(
-                        "{}: no estimate {} for it (the mean must cover every truth file; score single files as TRUTH EST)",
-                        t.display(),
-                        e.display()
-                    ));
-                }
+                same_name_in(
+                    ed,
+                    &t,
+                    "estimate",
+                    " (the mean must cover every truth file; score single files as TRUTH EST)",
+                )?;
             }
             for e in names {
-                let t = td.join(e.file_name().unwrap_or_default());
-                if !t.is_file() {
-                    return Err(format!(
-                        "{}: no truth file {} for it",
-                        e.display(),
-                        t.display()
-                    ));
-                }
+                let t = same_name_in(td, &e, "truth file", "")?;
                 pairs.push((stem(&e), t, e));
             }
         }
@@ -228,6 +219,21 @@ fn alignment_json(a: &FrameAlignment) -> String {
         a.n_downweighted,
         a.median_error_deg
     )
+}
+
+/// The file of `dir` with the name of `file` (its counterpart), or an error saying that `file`
+/// has no `what` there, with the reason `why`.
+fn same_name_in(dir: &Path, file: &Path, what: &str, why: &str) -> Result<PathBuf, String> {
+    let counterpart = dir.join(file.file_name().unwrap_or_default());
+    if counterpart.is_file() {
+        Ok(counterpart)
+    } else {
+        Err(format!(
+            "{}: no {what} {} for it{why}",
+            file.display(),
+            counterpart.display()
+        ))
+    }
 }
 
 fn stem(p: &Path) -> String {

@@ -56,7 +56,7 @@ enum Command {
 /// What `rootfuse run --help` adds after the options.
 const RUN_HELP: &str = "\
 Gaps and bad samples: every filter screens each sample. A time step that is not in (0, 1] s \
-(a gap of more than 1 s in the log, the filters' screening limit `max_dt`) or a gyroscope \
+(a gap of more than 1 s in the log: the filters' screening limit `max_dt`, not settable yet) or a gyroscope \
 reading that is not finite or above 35 rad/s skips the whole sample; a non-finite \
 accelerometer or magnetometer reading skips that correction. Each skip is counted in the \
 `rejected:` summary line and, per sample, in the `--flags` column. After a skipped gap the \

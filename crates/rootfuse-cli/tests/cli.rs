@@ -365,6 +365,16 @@ fn run_offline_smooths() {
     }
 }
 
+/// The last column (`flags`) of an estimate file, per sample.
+fn flags_column(path: &Path) -> Vec<u8> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
+        .collect()
+}
+
 /// `--flags` carries the flagship's detector states: 32 while at rest (most of a long-rest
 /// recording), 64 where the field is disturbed; filters without detectors never set them.
 #[test]
@@ -378,12 +388,7 @@ fn run_flags_carry_rest_and_disturbance() {
         let (i, o) = (input.display().to_string(), out.display().to_string());
         let r = run(&["run", &i, "--out", &o, "--filter", filter, "--flags"]);
         assert!(r.status.success(), "{}", text(&r).1);
-        let written = std::fs::read_to_string(out.join(format!("{scenario_name}.csv"))).unwrap();
-        written
-            .lines()
-            .skip(1)
-            .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
-            .collect()
+        flags_column(&out.join(format!("{scenario_name}.csv")))
     };
     let rest = column("long-rest", "flagship");
     let at_rest = rest.iter().filter(|&&f| f & 32 != 0).count();
@@ -560,12 +565,7 @@ fn run_skips_and_counts_missing_imu_values() {
     assert!(stdout.contains("gyro 1, accelerometer 1"), "{stdout}");
     let est = read_estimates(out.join("gaps.csv")).unwrap();
     assert!(est.quat.iter().all(|q| q.w.is_finite()));
-    let flags: Vec<u8> = std::fs::read_to_string(out.join("gaps.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
-        .collect();
+    let flags = flags_column(&out.join("gaps.csv"));
     assert_eq!((flags[50], flags[60]), (2, 4));
     assert_eq!(flags.iter().filter(|&&f| f != 0).count(), 2);
 
@@ -876,5 +876,22 @@ fn eval_align_never_hurts_on_broad() {
             eprintln!("{dof}D {name}: {p:.4}° -> aligned {a:.4}°");
             assert!(a <= p, "{dof}D {name}: aligned {a}° > {p}°");
         }
+    }
+}
+
+/// `run --help` documents the 1 s gap limit and what a signal does (the limit appeared
+/// nowhere before).
+#[test]
+fn run_help_documents_gaps_and_signals() {
+    let (code, stdout, _) = run_paths(&[&"run", &"--help"]);
+    assert_eq!(code, Some(0));
+    for expected in [
+        "more than 1 s",
+        "max_dt",
+        "--strict",
+        "SIGTERM",
+        "exits with code 130",
+    ] {
+        assert!(stdout.contains(expected), "{expected}: {stdout}");
     }
 }
