@@ -3,8 +3,8 @@
 use rootfuse_attitude::{Quat, Recording, Vec3};
 use rootfuse_eval::metrics::{Alignment, MetricsError, error_series, evaluate, rmse, sample_error};
 use rootfuse_io::{
-    ReadError, WriteError, list_dir, read_csv, read_dir, read_index, write_estimates,
-    write_recording,
+    ImuGaps, ReadError, WriteError, list_dir, read_csv, read_csv_with, read_dir, read_estimates,
+    read_index, stale_temporaries, temporary_path, write_estimates, write_recording,
 };
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -787,4 +787,97 @@ mod no_panic {
             let _ = rmse(&est, &truth, None, mode);
         }
     }
+}
+
+/// `ImuGaps::Keep` keeps a non-finite IMU value for the filters to skip and count; the
+/// default refuses it (`error_nan_in_imu_columns`). Time and truth rules are unchanged.
+#[test]
+fn imu_gaps_are_kept_on_request() {
+    let dir = temp_dir("gaps");
+    let text = format!(
+        "{HEADER}\n0,0,0,0,0,0,9.8,1,2,3,1,0,0,0,1\n0.1,NaN,0,0,0,0,inf,1,NaN,3,1,0,0,0,1\n"
+    );
+    let p = write(&dir, "gaps.csv", &text);
+    assert!(matches!(
+        read_csv(&p),
+        Err(ReadError::NonFiniteImu {
+            line: 3,
+            index: 2,
+            ..
+        })
+    ));
+    let rec = read_csv_with(&p, ImuGaps::Keep).unwrap();
+    assert!(rec.gyr[1].x.is_nan() && rec.acc[1].z == f64::INFINITY);
+    assert!(rec.mag.as_ref().unwrap()[1].y.is_nan());
+    let bad_time = write(&dir, "t.csv", "t,gx,gy,gz,ax,ay,az\nNaN,0,0,0,0,0,1\n");
+    assert!(matches!(
+        read_csv_with(&bad_time, ImuGaps::Keep),
+        Err(ReadError::NonFiniteTime { line: 2, .. })
+    ));
+}
+
+/// A quaternion far from unit norm is no orientation: refused in truth (NaN = unknown stays
+/// allowed) and in estimates, naming the line; slightly rounded ones are accepted.
+#[test]
+fn quaternions_far_from_unit_norm_are_refused() {
+    let text =
+        format!("{HEADER}\n0,0,0,0,0,0,9.8,1,2,3,1,0,0,0,1\n0.1,0,0,0,0,0,9.8,1,2,3,0,0,0,0,1\n");
+    let (e, msg, _) = read_err("qzero", &text);
+    assert!(
+        matches!(e, ReadError::NotUnitQuaternion { line: 3, .. }),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("line 3: quaternion `qw,qx,qy,qz` has norm 0"),
+        "{msg}"
+    );
+    let dir = temp_dir("estnorm");
+    let est = write(
+        &dir,
+        "e.csv",
+        "t,qw,qx,qy,qz\n0,1,0,0,0\n1,0.7071,0.7071,0,0\n2,2,0,0,0\n",
+    );
+    let e = read_estimates(&est).unwrap_err();
+    assert!(
+        matches!(e, ReadError::NotUnitQuaternion { line: 4, .. }),
+        "{e}"
+    );
+    let est = write(&dir, "n.csv", "t,qw,qx,qy,qz\n0,1,0,0,0\n1,NaN,0,0,0\n");
+    let e = read_estimates(&est).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("line 3, column `qw` (#2): estimate value NaN is not finite"),
+        "{e}"
+    );
+}
+
+/// A control character in a cell is shown escaped in the message.
+#[test]
+fn messages_escape_control_characters() {
+    let text = "t,gx,gy,gz,ax,ay,az,use\n0,0,0,0,0,0,9.8,\u{0}\n";
+    let (e, msg, _) = read_err("nul", text);
+    assert!(matches!(e, ReadError::BadUse { line: 2, .. }), "{msg}");
+    assert!(
+        msg.contains("`\\u{0}` is not 0 or 1") && !msg.contains('\0'),
+        "{msg}"
+    );
+    let (_, msg, _) = read_err("bel", "t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9\u{7}\n");
+    assert!(msg.contains("`9\\u{7}` is not a number"), "{msg}");
+}
+
+/// Temporary files of other processes' writes to a path are found; ours and other names not.
+#[test]
+fn stale_temporaries_of_a_path() {
+    let dir = temp_dir("stale");
+    let target = dir.join("x.csv");
+    let stale = temporary_path(&target, 4_000_000);
+    for p in [
+        &stale,
+        &temporary_path(&target, std::process::id()),
+        &temporary_path(&dir.join("y.csv"), 4_000_000),
+        &dir.join("x.csv.tmp.12a"),
+    ] {
+        std::fs::write(p, "").unwrap();
+    }
+    assert_eq!(stale_temporaries(&target), vec![stale]);
 }

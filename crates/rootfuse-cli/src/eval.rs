@@ -1,7 +1,9 @@
 //! `rootfuse eval`: the BROAD metrics of estimate files against ground truth.
 use clap::Args;
+use rootfuse_attitude::Quat;
+use rootfuse_eval::alignment::{FrameAlignment, align_recording};
 use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
-use rootfuse_io::{read_csv, read_estimates};
+use rootfuse_io::{list_dir, read_csv, read_estimates};
 use std::path::{Path, PathBuf};
 
 /// Options of `rootfuse eval`.
@@ -24,10 +26,29 @@ pub struct EvalArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
+    /// The truth is in other frames (motion capture): first estimate the constant earth-frame
+    /// offset (about the vertical only with --dof 6, whose truth frame must have z up) and the
+    /// sensor-to-body rotation by robust least squares, print them, and score the aligned
+    /// estimate.
+    #[arg(long)]
+    align: bool,
 }
 
-/// Scores one estimate file against one truth file.
-pub fn score(truth: &Path, est: &Path, align: Alignment) -> Result<Rmse, String> {
+/// One scored file.
+struct Scored {
+    name: String,
+    rmse: Rmse,
+    alignment: Option<FrameAlignment>,
+}
+
+/// Scores one estimate file against one truth file, aligning the frames first with
+/// `frames`.
+fn score(
+    truth: &Path,
+    est: &Path,
+    align: Alignment,
+    frames: bool,
+) -> Result<(Rmse, Option<FrameAlignment>), String> {
     let rec = read_csv(truth).map_err(|e| e.to_string())?;
     let est_data = read_estimates(est).map_err(|e| e.to_string())?;
     if est_data.t.len() != rec.len() {
@@ -51,7 +72,16 @@ pub fn score(truth: &Path, est: &Path, align: Alignment) -> Result<Rmse, String>
             truth.display()
         ));
     }
-    evaluate(&rec, &est_data.quat, align).map_err(|e| format!("{}: {e}", truth.display()))
+    let alignment = frames
+        .then(|| align_recording(&rec, &est_data.quat, align))
+        .transpose()
+        .map_err(|e| format!("{}: --align: {e}", est.display()))?;
+    let quat = match &alignment {
+        Some(a) => a.apply_all(&est_data.quat),
+        None => est_data.quat,
+    };
+    let rmse = evaluate(&rec, &quat, align).map_err(|e| format!("{}: {e}", truth.display()))?;
+    Ok((rmse, alignment))
 }
 
 /// Runs the command.
@@ -65,35 +95,38 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     match (&args.truth, &args.est, &args.truth_dir, &args.est_dir) {
         (Some(t), Some(e), None, None) => pairs.push((stem(e), t.clone(), e.clone())),
         (None, None, Some(td), Some(ed)) => {
-            let mut names: Vec<PathBuf> = std::fs::read_dir(ed)
-                .map_err(|e| format!("{}: cannot read folder: {e}", ed.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "csv"))
-                .collect();
-            names.sort();
-            for e in names {
-                let t = td.join(e.file_name().unwrap_or_default());
-                if !t.is_file() {
-                    return Err(format!(
-                        "{}: no truth file {} for it",
-                        e.display(),
-                        t.display()
-                    ));
-                }
-                pairs.push((stem(&e), t, e));
+            let names = list_dir(ed).map_err(|e| e.to_string())?;
+            if names.is_empty() {
+                return Err(format!("{}: no .csv files in the folder", ed.display()));
             }
-            if pairs.is_empty() {
-                return Err(format!("{}: no estimate files (*.csv)", ed.display()));
+            // Every truth file must be scored: a mean over fewer files would not be the
+            // dataset's.
+            for t in list_dir(td).map_err(|e| e.to_string())? {
+                same_name_in(
+                    ed,
+                    &t,
+                    "estimate",
+                    " (the mean must cover every truth file; score single files as TRUTH EST)",
+                )?;
+            }
+            for e in names {
+                let t = same_name_in(td, &e, "truth file", "")?;
+                pairs.push((stem(&e), t, e));
             }
         }
         _ => return Err("give TRUTH EST, or --truth-dir D --est-dir E".into()),
     }
     let mut rows = Vec::new();
     for (name, t, e) in &pairs {
-        rows.push((name.clone(), score(t, e, align)?));
+        let (rmse, alignment) = score(t, e, align, args.align)?;
+        rows.push(Scored {
+            name: name.clone(),
+            rmse,
+            alignment,
+        });
     }
     let n = rows.len() as f64;
-    let mean = |f: fn(&Rmse) -> f64| rows.iter().map(|(_, r)| f(r)).sum::<f64>() / n;
+    let mean = |f: fn(&Rmse) -> f64| rows.iter().map(|s| f(&s.rmse)).sum::<f64>() / n;
     let (mt, mh, mi) = (
         mean(|r| r.total),
         mean(|r| r.heading),
@@ -102,13 +135,15 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     if args.json {
         let files: Vec<String> = rows
             .iter()
-            .map(|(name, r)| {
+            .map(|s| {
+                let r = &s.rmse;
                 format!(
-                    "{{\"name\": {}, \"total\": {}, \"heading\": {}, \"inclination\": {}}}",
-                    json_string(name),
+                    "{{\"name\": {}, \"total\": {}, \"heading\": {}, \"inclination\": {}{}}}",
+                    json_string(&s.name),
                     r.total,
                     r.heading,
-                    r.inclination
+                    r.inclination,
+                    s.alignment.as_ref().map_or(String::new(), alignment_json)
                 )
             })
             .collect();
@@ -119,9 +154,11 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     } else {
         out!("| file | total (deg) | heading (deg) | inclination (deg) |");
         out!("|---|---|---|---|");
-        for (name, r) in &rows {
+        for s in &rows {
+            let r = &s.rmse;
             out!(
-                "| {name} | {:.3} | {:.3} | {:.3} |",
+                "| {} | {:.3} | {:.3} | {:.3} |",
+                s.name,
                 r.total,
                 r.heading,
                 r.inclination
@@ -130,8 +167,73 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         if rows.len() > 1 {
             out!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
         }
+        if args.align {
+            out!("\naligned (estimate in the truth's frames = earth ⊗ q ⊗ sensor_to_body*):");
+            out!(
+                "| file | earth offset (deg, about axis) | sensor to body (deg, about axis) | outliers | median error (deg) |"
+            );
+            out!("|---|---|---|---|---|");
+            for s in &rows {
+                if let Some(a) = &s.alignment {
+                    out!(
+                        "| {} | {} | {} | {} of {} | {:.3} |",
+                        s.name,
+                        axis_angle(a.earth),
+                        axis_angle(a.sensor_to_body),
+                        a.n_downweighted,
+                        a.n_used,
+                        a.median_error_deg
+                    );
+                }
+            }
+        }
     }
     Ok(())
+}
+
+/// `angle° about [x, y, z]` of a rotation.
+fn axis_angle(q: Quat<f64>) -> String {
+    let v = q.to_rotation_vector();
+    let angle = v.norm();
+    if angle == 0.0 {
+        return "0".into();
+    }
+    let a = v * (1.0 / angle);
+    format!(
+        "{:.4} about [{:.4}, {:.4}, {:.4}]",
+        angle.to_degrees(),
+        a.x,
+        a.y,
+        a.z
+    )
+}
+
+/// The alignment as extra JSON fields: both rotations as `[w, x, y, z]`.
+fn alignment_json(a: &FrameAlignment) -> String {
+    let q = |q: Quat<f64>| format!("[{}, {}, {}, {}]", q.w, q.x, q.y, q.z);
+    format!(
+        ", \"align\": {{\"earth\": {}, \"sensor_to_body\": {}, \"n_used\": {}, \"n_downweighted\": {}, \"median_error\": {}}}",
+        q(a.earth),
+        q(a.sensor_to_body),
+        a.n_used,
+        a.n_downweighted,
+        a.median_error_deg
+    )
+}
+
+/// The file of `dir` with the name of `file` (its counterpart), or an error saying that `file`
+/// has no `what` there, with the reason `why`.
+fn same_name_in(dir: &Path, file: &Path, what: &str, why: &str) -> Result<PathBuf, String> {
+    let counterpart = dir.join(file.file_name().unwrap_or_default());
+    if counterpart.is_file() {
+        Ok(counterpart)
+    } else {
+        Err(format!(
+            "{}: no {what} {} for it{why}",
+            file.display(),
+            counterpart.display()
+        ))
+    }
 }
 
 fn stem(p: &Path) -> String {

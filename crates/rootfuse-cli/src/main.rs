@@ -22,6 +22,7 @@ use std::process::ExitCode;
 mod demo;
 mod engine;
 mod eval;
+mod filter_args;
 mod filters;
 mod plot;
 mod run;
@@ -41,6 +42,7 @@ enum Command {
     /// Runs the built-in default job on simulated data and prints accuracy and throughput.
     Demo(demo::DemoArgs),
     /// Runs a filter over IMU CSV files and writes one estimate file per input.
+    #[command(after_long_help = RUN_HELP)]
     Run(run::RunArgs),
     /// Scores estimate files against ground truth with the BROAD metrics.
     Eval(eval::EvalArgs),
@@ -51,6 +53,22 @@ enum Command {
     /// Channel-updates per second of a filter: scalar, SIMD lanes, and lanes on every core.
     Throughput(throughput::ThroughputArgs),
 }
+
+/// What `rootfuse run --help` adds after the options.
+const RUN_HELP: &str = "\
+Gaps and bad samples: every filter screens each sample. A time step that is not in (0, max_dt] \
+(a gap longer than `--max-dt`, default 1 s) or a gyroscope reading that is not finite or \
+faster than `max_gyr` (default 35 rad/s, `--param max_gyr=70` for a 4000 °/s sensor) skips \
+the whole sample; a non-finite \
+accelerometer or magnetometer reading skips that correction. Each skip is counted in the \
+`rejected:` summary line and, per sample, in the `--flags` column. After a skipped gap the \
+orientation is held, not extrapolated.
+
+Outputs: each estimate is written to a temporary file and renamed into place, so a final \
+`<stem>.csv` is always complete. SIGINT or SIGTERM lets the file being written finish, then \
+exits with code 130; temporary files left by a killed run are removed by the next run that \
+writes the same estimate. Two inputs with the same file name, or an --out folder in which \
+an estimate would replace an input, are refused before anything is written.";
 
 /// How a command ended.
 pub enum Outcome {

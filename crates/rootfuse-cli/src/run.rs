@@ -1,15 +1,31 @@
 //! `rootfuse run`: filter IMU CSV files, write one estimate file per input.
 use crate::Outcome;
 use crate::engine::{Columns, PrecisionArg, run_recordings_with};
+use crate::filter_args::FilterArgs;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_attitude::smooth::forward_backward;
-use rootfuse_attitude::{Dof, OrientationFilter, Recording};
+use rootfuse_attitude::{OrientationFilter, Recording};
 use rootfuse_batch::{ChannelOutput, RejectionTotals};
-use rootfuse_io::{list_dir, read_csv, write_estimates};
-use std::path::PathBuf;
+use rootfuse_io::{ImuGaps, list_dir, read_csv_with, stale_temporaries, write_estimates};
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
+
+/// Held while an estimate file is being written. The SIGINT/SIGTERM handler takes it before it
+/// exits, so the write in progress is finished and renamed into place (or removed on error)
+/// and no new one starts: a signal never leaves a temporary file behind.
+static WRITING: Mutex<()> = Mutex::new(());
+
+/// Set by the signal handler before it waits for [`WRITING`], so that the main thread, should
+/// it take the lock first for its next file, exits instead of starting that write.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Exit code after SIGINT or SIGTERM (128 + SIGINT, as shells report an interrupt).
+const EXIT_INTERRUPTED: i32 = 130;
 
 /// Options of `rootfuse run`.
 #[derive(Args)]
@@ -17,15 +33,8 @@ pub struct RunArgs {
     /// IMU CSV files, or folders of them (every `*.csv` but `index.csv`).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
-    /// Filter name (see `rootfuse filters`).
-    #[arg(long)]
-    filter: String,
-    /// Parameter override `key=value` (repeatable).
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    params: Vec<String>,
-    /// 6: gravity only; 9: with magnetometer (filters with a `dof` parameter).
-    #[arg(long, value_parser = ["6", "9"])]
-    dof: Option<String>,
+    #[command(flatten)]
+    filter: FilterArgs,
     /// Output folder for `<stem>.csv` estimate files.
     #[arg(long, default_value = "out")]
     out: PathBuf,
@@ -53,22 +62,21 @@ pub struct RunArgs {
     /// Skip unreadable files (reported) instead of stopping; exit code 1 if any failed.
     #[arg(long)]
     keep_going: bool,
+    /// Refuse a file with a NaN or infinite IMU value. Without it such values (dropped
+    /// packets) are kept and the filter skips them: the whole sample for the gyroscope, that
+    /// correction for the accelerometer or magnetometer, counted in the summary and in
+    /// `--flags`.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// Runs the command.
 pub fn run(args: &RunArgs) -> Result<Outcome, String> {
-    let mut spec = FilterSpec::new(&args.filter).map_err(|e| e.to_string())?;
-    for p in &args.params {
-        spec.set(p).map_err(|e| e.to_string())?;
-    }
-    if let Some(dof) = &args.dof {
-        spec.set_dof(if dof == "6" { Dof::Six } else { Dof::Nine })
-            .map_err(|e| e.to_string())?;
-    }
+    let spec = args.filter.spec()?;
     if args.covariance && spec.build::<f64>().attitude_covariance().is_none() {
         return Err(format!(
             "--covariance: filter `{}` carries no covariance (sqrt-eskf and ekf do)",
-            args.filter
+            args.filter.filter
         ));
     }
     if args.offline {
@@ -80,18 +88,32 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         if spec.build::<f64>().attitude_covariance().is_none() {
             return Err(format!(
                 "--offline: filter `{}` carries no covariance to weight the two passes (sqrt-eskf and ekf do)",
-                args.filter
+                args.filter.filter
             ));
         }
     }
     let mut files = Vec::new();
     for input in &args.inputs {
         if input.is_dir() {
-            files.extend(list_dir(input).map_err(|e| e.to_string())?);
+            let listed = list_dir(input).map_err(|e| e.to_string())?;
+            if listed.is_empty() {
+                return Err(format!("{}: no .csv files in the folder", input.display()));
+            }
+            files.extend(listed);
         } else {
             files.push(input.clone());
         }
     }
+    let outputs_of_files = output_paths(&files, &args.out)?;
+    install_signal_handler()?;
+    let nine_d = spec.uses_magnetometer();
+    // `--dof 9` or `--param dof=9` asked for the magnetometer; the filters' default did not.
+    let dof_explicit = args.filter.dof_explicit();
+    let gaps = if args.strict {
+        ImuGaps::Refuse
+    } else {
+        ImuGaps::Keep
+    };
     let bar = ProgressBar::new(files.len() as u64).with_style(
         ProgressStyle::with_template("{msg:>10} [{bar:30}] {pos}/{len} {wide_msg}")
             .map_err(|e| e.to_string())?
@@ -99,15 +121,25 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     );
     bar.set_message("reading");
     let mut recs: Vec<Recording> = Vec::new();
+    let mut out_paths: Vec<&Path> = Vec::new();
     let mut failed = 0usize;
-    for file in &files {
-        match read_csv(file) {
-            Ok(rec) => recs.push(rec),
+    for (file, out_path) in files.iter().zip(&outputs_of_files) {
+        let checked = read_csv_with(file, gaps)
+            .map_err(|e| e.to_string())
+            .and_then(|rec| check_recording(file, rec, nine_d, dof_explicit));
+        match checked {
+            Ok((rec, note)) => {
+                if let Some(note) = note {
+                    bar.suspend(|| eprintln!("note: {note}"));
+                }
+                recs.push(rec);
+                out_paths.push(out_path);
+            }
             Err(e) if args.keep_going => {
                 bar.suspend(|| eprintln!("error: {e}"));
                 failed += 1;
             }
-            Err(e) => return Err(e.to_string()),
+            Err(e) => return Err(e),
         }
         bar.inc(1);
     }
@@ -117,7 +149,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     }
     let spinner = ProgressBar::new_spinner().with_message(format!(
         "running {} on {} channel(s)",
-        args.filter,
+        args.filter.filter,
         recs.len()
     ));
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
@@ -137,16 +169,37 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
+    let mut stale = 0usize;
+    for path in &out_paths {
+        for tmp in stale_temporaries(path) {
+            std::fs::remove_file(&tmp).map_err(|e| {
+                format!("{}: cannot remove stale temporary file: {e}", tmp.display())
+            })?;
+            stale += 1;
+        }
+    }
+    if stale > 0 {
+        eprintln!(
+            "note: removed {stale} temporary file(s) left in {} by an interrupted run",
+            args.out.display()
+        );
+    }
     let mut totals = [0u64; 6];
     let mut samples = 0usize;
-    for (rec, out) in recs.iter().zip(&outputs) {
-        let path = args.out.join(format!("{}.csv", rec.name));
+    let (mut gap_samples, mut gap_files) = (0usize, 0usize);
+    for ((rec, out), path) in recs.iter().zip(&outputs).zip(&out_paths) {
         let series = extra_columns(out);
         let extra: Vec<(&str, &[f64])> = series
             .iter()
             .map(|(name, values)| (*name, values.as_slice()))
             .collect();
-        write_estimates(&path, &rec.t, &out.quat, &extra).map_err(|e| e.to_string())?;
+        {
+            let _writing = lock_for_writing();
+            write_estimates(path, &rec.t, &out.quat, &extra).map_err(|e| e.to_string())?;
+        }
+        let gaps = samples_with_missing_imu(rec);
+        gap_samples += gaps;
+        gap_files += usize::from(gaps > 0);
         let r = out.rejections;
         for (t, v) in totals
             .iter_mut()
@@ -176,12 +229,128 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         totals[4],
         totals[5]
     );
+    if gap_samples > 0 {
+        out!(
+            "missing IMU values (NaN or infinite): {gap_samples} sample(s) in {gap_files} file(s), skipped by the filter and counted above (--strict refuses such files)"
+        );
+    }
     if failed > 0 {
         eprintln!("{failed} file(s) failed");
         Ok(Outcome::Partial)
     } else {
         Ok(Outcome::Success)
     }
+}
+
+/// Where each input's estimate goes (`OUT/<stem>.csv`), refusing a plan that would lose data:
+/// two inputs with the same file name (the second estimate would overwrite the first), or an
+/// estimate written over one of the inputs (`--out` is an input folder).
+fn output_paths(files: &[PathBuf], out: &Path) -> Result<Vec<PathBuf>, String> {
+    let canonical_inputs: HashSet<PathBuf> =
+        files.iter().filter_map(|f| f.canonicalize().ok()).collect();
+    // A folder that does not exist yet holds no input.
+    let canonical_out = out.canonicalize().ok();
+    let mut first_with_name: HashMap<String, &PathBuf> = HashMap::new();
+    let mut paths = Vec::with_capacity(files.len());
+    for file in files {
+        let name = format!(
+            "{}.csv",
+            file.file_stem().unwrap_or_default().to_string_lossy()
+        );
+        let path = out.join(&name);
+        if let Some(first) = first_with_name.insert(name, file) {
+            return Err(format!(
+                "{} and {}: both estimates would be written to {}; give inputs with distinct file names",
+                first.display(),
+                file.display(),
+                path.display()
+            ));
+        }
+        if let Some(dir) = &canonical_out
+            && canonical_inputs.contains(&dir.join(path.file_name().unwrap_or_default()))
+        {
+            return Err(format!(
+                "{}: the estimate of {} would overwrite this input; choose another --out",
+                path.display(),
+                file.display()
+            ));
+        }
+        paths.push(path);
+    }
+    Ok(paths)
+}
+
+/// On SIGINT or SIGTERM: wait for the file being written (if any), then exit with
+/// [`EXIT_INTERRUPTED`]; estimates already written are complete, none is half written.
+fn install_signal_handler() -> Result<(), String> {
+    ctrlc::set_handler(|| {
+        INTERRUPTED.store(true, Ordering::SeqCst);
+        let _writing = WRITING.lock().unwrap_or_else(PoisonError::into_inner);
+        exit_interrupted();
+    })
+    .map_err(|e| format!("cannot install the signal handler: {e}"))
+}
+
+/// Takes [`WRITING`] for one file, or exits if a signal came.
+fn lock_for_writing() -> MutexGuard<'static, ()> {
+    let writing = WRITING.lock().unwrap_or_else(PoisonError::into_inner);
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        exit_interrupted();
+    }
+    writing
+}
+
+/// Ends the process after a signal. Called only while holding [`WRITING`]: no write is in
+/// progress, no temporary file exists, and no other thread can call it at the same time.
+fn exit_interrupted() -> ! {
+    eprintln!("interrupted: the estimate files written so far are complete");
+    std::process::exit(EXIT_INTERRUPTED);
+}
+
+/// Refuses a recording the run cannot use: one with no data rows, or without magnetometer
+/// columns when 9D was asked for explicitly. When 9D is only the filter's default, a note
+/// (returned) says that every magnetometer correction will be skipped.
+fn check_recording(
+    file: &Path,
+    rec: Recording,
+    nine_d: bool,
+    dof_explicit: bool,
+) -> Result<(Recording, Option<String>), String> {
+    if rec.is_empty() {
+        return Err(format!(
+            "{}: line 2: no data rows (the file has only a header)",
+            file.display()
+        ));
+    }
+    if nine_d && rec.mag.is_none() {
+        let message = format!(
+            "{}: no magnetometer columns (mx,my,mz) for 9D operation; use --dof 6",
+            file.display()
+        );
+        if dof_explicit {
+            return Err(message);
+        }
+        return Ok((
+            rec,
+            Some(format!(
+                "{message} (the filter's default is 9D: every magnetometer correction is skipped)"
+            )),
+        ));
+    }
+    Ok((rec, None))
+}
+
+/// Samples with a NaN or infinite gyroscope, accelerometer or magnetometer value.
+fn samples_with_missing_imu(rec: &Recording) -> usize {
+    let finite =
+        |v: &rootfuse_attitude::Vec3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
+    (0..rec.len())
+        .filter(|&i| {
+            !finite(&rec.gyr[i])
+                || !finite(&rec.acc[i])
+                || rec.mag.as_ref().is_some_and(|m| !finite(&m[i]))
+        })
+        .count()
 }
 
 /// Forward-backward smoothing of every recording (f64), with the forward pass's rejection

@@ -1,21 +1,14 @@
 //! `rootfuse throughput`: one filter measured in one run as scalar f32, scalar f64, f32x8
 //! lanes, f64x4 lanes and f32x8 lanes on every core (synthetic in-memory data).
+use crate::filter_args::FilterArgs;
 use clap::Args;
-use rootfuse_attitude::Dof;
 use rootfuse_attitude::registry::FilterSpec;
 
 /// Options of `rootfuse throughput`.
 #[derive(Args)]
 pub struct ThroughputArgs {
-    /// Filter name (see `rootfuse filters`).
-    #[arg(long)]
-    filter: String,
-    /// Parameter override `key=value` (repeatable).
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    params: Vec<String>,
-    /// 6: gravity only; 9: with magnetometer.
-    #[arg(long, value_parser = ["6", "9"])]
-    dof: Option<String>,
+    #[command(flatten)]
+    filter: FilterArgs,
     /// Number of channels.
     #[arg(long, default_value_t = 4096)]
     channels: usize,
@@ -152,14 +145,7 @@ pub fn run(args: &ThroughputArgs) -> Result<(), String> {
     if args.channels == 0 || args.samples == 0 {
         return Err("--channels and --samples must be at least 1".into());
     }
-    let mut spec = FilterSpec::new(&args.filter).map_err(|e| e.to_string())?;
-    for p in &args.params {
-        spec.set(p).map_err(|e| e.to_string())?;
-    }
-    if let Some(dof) = &args.dof {
-        spec.set_dof(if dof == "6" { Dof::Six } else { Dof::Nine })
-            .map_err(|e| e.to_string())?;
-    }
+    let spec = args.filter.spec()?;
     if args.sweep {
         return run_sweep(args, &spec);
     }

@@ -365,6 +365,16 @@ fn run_offline_smooths() {
     }
 }
 
+/// The last column (`flags`) of an estimate file, per sample.
+fn flags_column(path: &Path) -> Vec<u8> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
+        .collect()
+}
+
 /// `--flags` carries the flagship's detector states: 32 while at rest (most of a long-rest
 /// recording), 64 where the field is disturbed; filters without detectors never set them.
 #[test]
@@ -378,12 +388,7 @@ fn run_flags_carry_rest_and_disturbance() {
         let (i, o) = (input.display().to_string(), out.display().to_string());
         let r = run(&["run", &i, "--out", &o, "--filter", filter, "--flags"]);
         assert!(r.status.success(), "{}", text(&r).1);
-        let written = std::fs::read_to_string(out.join(format!("{scenario_name}.csv"))).unwrap();
-        written
-            .lines()
-            .skip(1)
-            .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() as u8)
-            .collect()
+        flags_column(&out.join(format!("{scenario_name}.csv")))
     };
     let rest = column("long-rest", "flagship");
     let at_rest = rest.iter().filter(|&&f| f & 32 != 0).count();
@@ -399,4 +404,581 @@ fn run_flags_carry_rest_and_disturbance() {
     );
     let mahony = column("long-rest", "mahony");
     assert!(mahony.iter().all(|&f| f & (32 | 64) == 0));
+}
+
+/// Runs `rootfuse` with `args` (paths displayed) and returns exit code, stdout, stderr.
+fn run_paths(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String) {
+    let o = bin()
+        .args(args.iter().map(|a| a.as_ref()))
+        .output()
+        .expect("the binary runs");
+    let (stdout, stderr) = text(&o);
+    (o.status.code(), stdout, stderr)
+}
+
+fn simulated(dir: &Path, name: &str, seed: u64) -> PathBuf {
+    let path = dir.join(name);
+    write_recording(&path, &scenario("slow-rotation", seed, 3.0, 100.0).unwrap()).unwrap();
+    path
+}
+
+/// Two inputs with the same file name would write the same estimate: refused before any
+/// output is written (it used to overwrite the first estimate with exit code 0).
+#[test]
+fn run_refuses_two_inputs_with_one_output_name() {
+    let dir = temp_dir("dupname");
+    std::fs::create_dir_all(dir.join("a/s")).unwrap();
+    let (a, b) = (
+        simulated(&dir, "a/x.csv", 1),
+        simulated(&dir, "a/s/x.csv", 2),
+    );
+    let out = dir.join("o");
+    let (code, _, stderr) = run_paths(&[&"run", &a, &b, &"--filter", &"mahony", &"--out", &out]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("both estimates would be written to") && stderr.contains("x.csv"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(!out.join("x.csv").exists());
+}
+
+/// `--out` equal to the input folder would replace the input by its estimate: refused, the
+/// input is untouched.
+#[test]
+fn run_refuses_to_overwrite_an_input() {
+    let dir = temp_dir("overwrite");
+    let input = simulated(&dir, "x.csv", 1);
+    let before = std::fs::read(&input).unwrap();
+    for out in [dir.clone(), dir.join(".")] {
+        let (code, _, stderr) =
+            run_paths(&[&"run", &input, &"--filter", &"mahony", &"--out", &out]);
+        assert_eq!(code, Some(2), "{stderr}");
+        assert!(stderr.contains("would overwrite this input"), "{stderr}");
+    }
+    // The folder as input too.
+    let (code, _, stderr) = run_paths(&[&"run", &dir, &"--filter", &"mahony", &"--out", &dir]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+}
+
+/// A header-only file, a 6D file under `--dof 9` and an empty folder are one clear error each
+/// (they used to exit 0 with nothing said, or with "no input could be read").
+#[test]
+fn run_refuses_files_it_cannot_use() {
+    let dir = temp_dir("unusable");
+    let header = dir.join("header.csv");
+    std::fs::write(&header, "t,gx,gy,gz,ax,ay,az\n").unwrap();
+    let (code, _, stderr) = run_paths(&[
+        &"run",
+        &header,
+        &"--filter",
+        &"mahony",
+        &"--out",
+        &dir.join("o"),
+    ]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("header.csv: line 2: no data rows"),
+        "{stderr}"
+    );
+
+    let mut rec = scenario("slow-rotation", 1, 2.0, 100.0).unwrap();
+    rec.mag = None;
+    let six = dir.join("six.csv");
+    write_recording(&six, &rec).unwrap();
+    let out = dir.join("o");
+    for dof in [vec!["--dof", "9"], vec!["--param", "dof=9"]] {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> =
+            vec![&"run", &six, &"--filter", &"mahony", &"--out", &out];
+        let dof_args: Vec<&dyn AsRef<std::ffi::OsStr>> = dof
+            .iter()
+            .map(|a| a as &dyn AsRef<std::ffi::OsStr>)
+            .collect();
+        args.extend(dof_args);
+        let (code, _, stderr) = run_paths(&args);
+        assert_eq!(code, Some(2), "{stderr}");
+        assert!(
+            stderr.contains("six.csv: no magnetometer columns (mx,my,mz)"),
+            "{stderr}"
+        );
+    }
+    // The filter's 9D default on a 6D file runs, and says what happens.
+    let out = dir.join("default");
+    let (code, stdout, stderr) = run_paths(&[&"run", &six, &"--filter", &"mahony", &"--out", &out]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("note: ") && stderr.contains("--dof 6"),
+        "{stderr}"
+    );
+    assert!(
+        stdout.contains(&format!("magnetometer {}", rec.len())),
+        "{stdout}"
+    );
+
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let (code, _, stderr) = run_paths(&[&"run", &empty, &"--filter", &"mahony", &"--out", &out]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("no .csv files in the folder"), "{stderr}");
+}
+
+/// A NaN in an IMU column (a dropped packet) is skipped and counted by default: flagged per
+/// sample, counted in the summary; `--strict` refuses the file.
+#[test]
+fn run_skips_and_counts_missing_imu_values() {
+    let dir = temp_dir("gaps");
+    let clean = dir.join("clean.csv");
+    write_recording(&clean, &scenario("slow-rotation", 5, 3.0, 100.0).unwrap()).unwrap();
+    let content = std::fs::read_to_string(&clean).unwrap();
+    // Data line k is row k-1: the gyroscope x of row 50 and the accelerometer z of row 60.
+    let gaps: Vec<String> = content
+        .lines()
+        .enumerate()
+        .map(|(k, line)| {
+            let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+            match k {
+                51 => cells[1] = "NaN".into(),
+                61 => cells[6] = "nan".into(),
+                _ => {}
+            }
+            cells.join(",")
+        })
+        .collect();
+    let input = dir.join("gaps.csv");
+    std::fs::write(&input, gaps.join("\n") + "\n").unwrap();
+    let out = dir.join("o");
+    let (code, stdout, stderr) = run_paths(&[
+        &"run",
+        &input,
+        &"--filter",
+        &"mahony",
+        &"--flags",
+        &"--out",
+        &out,
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stdout.contains("missing IMU values (NaN or infinite): 2 sample(s) in 1 file(s)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("gyro 1, accelerometer 1"), "{stdout}");
+    let est = read_estimates(out.join("gaps.csv")).unwrap();
+    assert!(est.quat.iter().all(|q| q.w.is_finite()));
+    let flags = flags_column(&out.join("gaps.csv"));
+    assert_eq!((flags[50], flags[60]), (2, 4));
+    assert_eq!(flags.iter().filter(|&&f| f != 0).count(), 2);
+
+    let (code, _, stderr) = run_paths(&[
+        &"run",
+        &input,
+        &"--filter",
+        &"mahony",
+        &"--strict",
+        &"--out",
+        &out,
+    ]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("line 52, column `gx` (#2): IMU value NaN is not finite"),
+        "{stderr}"
+    );
+}
+
+/// Messages: a NUL byte is shown escaped, never raw.
+#[test]
+fn messages_escape_control_characters() {
+    let dir = temp_dir("nul");
+    let input = dir.join("nul.csv");
+    std::fs::write(&input, "t,gx,gy,gz,ax,ay,az,use\n0,0,0,0,0,0,9.8,\u{0}\n").unwrap();
+    let out = dir.join("o");
+    let (code, _, stderr) = run_paths(&[&"run", &input, &"--filter", &"mahony", &"--out", &out]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("`\\u{0}` is not 0 or 1"), "{stderr}");
+    assert!(!stderr.contains('\0'));
+}
+
+/// Writes an estimate file with the truth's times and the given quaternions.
+fn write_est(path: &Path, t: &[f64], q: impl Fn(usize) -> [String; 4]) {
+    let mut s = String::from("t,qw,qx,qy,qz\n");
+    for (i, t) in t.iter().enumerate() {
+        s.push_str(&format!("{t},{}\n", q(i).join(",")));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// `eval` refuses an estimate that is no orientation (it scored all-zero quaternions as
+/// 0.000°), says "not finite" as `run` does, refuses a truth folder not fully covered, and
+/// an empty estimate folder names the problem.
+#[test]
+fn eval_refuses_what_it_cannot_score() {
+    let dir = temp_dir("evalbad");
+    let truth = simulated(&dir, "x.csv", 3);
+    let rec = read_csv(&truth).unwrap();
+    let est = dir.join("est.csv");
+    let good = |i: usize| {
+        let q = rec.truth.as_ref().unwrap()[i];
+        [q.w, q.x, q.y, q.z].map(|v| v.to_string())
+    };
+    let zero = || ["0", "0", "0", "0"].map(str::to_string);
+    for (q, expected) in [
+        (
+            Box::new(|_| zero()) as Box<dyn Fn(usize) -> [String; 4]>,
+            "line 2: quaternion `qw,qx,qy,qz` has norm 0",
+        ),
+        (
+            Box::new(|i| if i >= 10 { zero() } else { good(i) }),
+            "line 12: quaternion",
+        ),
+        (
+            Box::new(|i| {
+                let mut g = good(i);
+                g[0] = (2.0 * g[0].parse::<f64>().unwrap()).to_string();
+                g
+            }),
+            "line 2: quaternion",
+        ),
+        (
+            Box::new(|i| {
+                let mut g = good(i);
+                if i == 4 {
+                    g[2] = "NaN".into();
+                }
+                g
+            }),
+            "line 6, column `qy` (#4): estimate value NaN is not finite",
+        ),
+    ] {
+        write_est(&est, &rec.t, q);
+        let (code, _, stderr) = run_paths(&[&"eval", &truth, &est]);
+        assert_eq!(code, Some(2), "{stderr}");
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
+    }
+    // A truth folder with a file that has no estimate: refused (the mean would cover less).
+    let (truth_dir, est_dir) = (dir.join("truth"), dir.join("est"));
+    std::fs::create_dir_all(&truth_dir).unwrap();
+    std::fs::create_dir_all(&est_dir).unwrap();
+    let (code, _, stderr) =
+        run_paths(&[&"eval", &"--truth-dir", &truth_dir, &"--est-dir", &est_dir]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("no .csv files in the folder"), "{stderr}");
+    std::fs::copy(&truth, truth_dir.join("a.csv")).unwrap();
+    std::fs::copy(&truth, truth_dir.join("b.csv")).unwrap();
+    write_est(&est_dir.join("a.csv"), &rec.t, good);
+    let (code, _, stderr) =
+        run_paths(&[&"eval", &"--truth-dir", &truth_dir, &"--est-dir", &est_dir]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("b.csv: no estimate"), "{stderr}");
+    write_est(&est_dir.join("b.csv"), &rec.t, good);
+    let (code, stdout, stderr) =
+        run_paths(&[&"eval", &"--truth-dir", &truth_dir, &"--est-dir", &est_dir]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.contains("| mean | 0.000 |"), "{stdout}");
+}
+
+/// Stale `<name>.tmp.<pid>` files of a killed run are removed by the next run writing `<name>`.
+#[test]
+fn run_removes_stale_temporary_files() {
+    let dir = temp_dir("stale");
+    let input = simulated(&dir, "x.csv", 1);
+    let out = dir.join("o");
+    std::fs::create_dir_all(&out).unwrap();
+    let stale = out.join("x.csv.tmp.4000000");
+    let other = out.join("y.csv.tmp.4000000");
+    std::fs::write(&stale, "t,qw").unwrap();
+    std::fs::write(&other, "t,qw").unwrap();
+    let (code, _, stderr) = run_paths(&[&"run", &input, &"--filter", &"mahony", &"--out", &out]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("removed 1 temporary file(s)"), "{stderr}");
+    assert!(!stale.exists() && out.join("x.csv").is_file());
+    // Not this run's business: another output's temporary file stays.
+    assert!(other.exists());
+}
+
+/// SIGTERM while the estimates are written: the process exits 130, every final file is
+/// complete and no temporary file is left (it used to leave `<name>.tmp.<pid>` behind).
+#[cfg(unix)]
+#[test]
+fn signal_during_writing_leaves_no_temporary_file() {
+    let dir = temp_dir("signal");
+    // Large static files, cheap to make, slow enough to write that the signal lands mid-write.
+    let rows = 400_000;
+    let mut content = String::from("t,gx,gy,gz,ax,ay,az\n");
+    for i in 0..rows {
+        content.push_str(&format!("{},0.001,0,0,0,0,9.81\n", i as f64 * 0.01));
+    }
+    let mut inputs = Vec::new();
+    for k in 0..4 {
+        let p = dir.join(format!("big{k}.csv"));
+        std::fs::write(&p, &content).unwrap();
+        inputs.push(p);
+    }
+    let out = dir.join("o");
+    let mut child = bin()
+        .arg("run")
+        .args(&inputs)
+        .args(["--filter", "mahony", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let temporary = |out: &Path| -> Vec<PathBuf> {
+        std::fs::read_dir(out)
+            .map(|d| {
+                d.filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.to_string_lossy().contains(".tmp."))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    // Wait until a temporary file exists, then signal at once.
+    let start = std::time::Instant::now();
+    while temporary(&out).is_empty() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before any write was seen"
+        );
+        assert!(start.elapsed().as_secs() < 120, "no temporary file seen");
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert_eq!(temporary(&out), Vec::<PathBuf>::new());
+    let written: Vec<PathBuf> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert!(!written.is_empty() && written.len() < 4, "{written:?}");
+    for p in written {
+        let lines = std::fs::read_to_string(&p).unwrap().lines().count();
+        assert_eq!(lines, rows + 1, "{} is incomplete", p.display());
+    }
+}
+
+/// `(name, total)` of every file in `eval --json` output.
+fn json_totals(json: &str) -> Vec<(String, f64)> {
+    json.split("{\"name\": \"")
+        .skip(1)
+        .map(|entry| {
+            let name = entry.split('"').next().unwrap().to_string();
+            let start = entry.find("\"total\": ").unwrap() + 9;
+            let total = entry[start..]
+                .split(',')
+                .next()
+                .unwrap()
+                .trim()
+                .parse()
+                .unwrap();
+            (name, total)
+        })
+        .collect()
+}
+
+/// `eval --align` on a simulated motion-capture truth (the simulated truth turned by an
+/// earth offset and a sensor-to-body rotation): as good as scoring against the truth in the
+/// IMU's own frames, and it prints both rotations.
+#[test]
+fn eval_align_scores_truth_in_other_frames() {
+    use rootfuse_attitude::{Quat, Vec3};
+    let dir = temp_dir("align");
+    let rec = scenario("slow-rotation", 11, 60.0, 100.0).unwrap();
+    let own = dir.join("own.csv");
+    write_recording(&own, &rec).unwrap();
+    let (earth, body) = (
+        Quat::from_rotation_vector(Vec3::new(1.2, -0.4, 2.0)),
+        Quat::from_rotation_vector(Vec3::new(-0.3, 0.9, 0.2)),
+    );
+    let mut mocap = rec.clone();
+    for q in mocap.truth.as_mut().unwrap() {
+        *q = earth * *q * body.conj();
+    }
+    let mocap_path = dir.join("mocap.csv");
+    write_recording(&mocap_path, &mocap).unwrap();
+    let out = dir.join("o");
+    let (code, _, stderr) = run_paths(&[&"run", &own, &"--filter", &"flagship", &"--out", &out]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let est = out.join("own.csv");
+    let score = |truth: &Path, align: bool| -> (f64, String) {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"eval", &truth, &est, &"--json"];
+        if align {
+            args.push(&"--align");
+        }
+        let (code, stdout, stderr) = run_paths(&args);
+        assert_eq!(code, Some(0), "{stderr}");
+        (json_totals(&stdout)[0].1, stdout)
+    };
+    let (reference, _) = score(&own, false);
+    let (misaligned, _) = score(&mocap_path, false);
+    let (aligned, json) = score(&mocap_path, true);
+    assert!(misaligned > 30.0, "{misaligned}");
+    assert!(
+        aligned <= reference + 1e-3,
+        "aligned {aligned}° vs {reference}° in the IMU's frames"
+    );
+    assert!(json.contains("\"align\": {\"earth\": ["), "{json}");
+    // The table shows both rotations.
+    let (code, stdout, _) = run_paths(&[&"eval", &mocap_path, &est, &"--align"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        stdout.contains("earth offset") && stdout.contains("sensor to body"),
+        "{stdout}"
+    );
+}
+
+/// On BROAD (pre-aligned), aligning never makes a good estimate look worse: per trial, the
+/// total RMSE after `--align` is at most the one without, 9D and 6D.
+#[test]
+fn eval_align_never_hurts_on_broad() {
+    let Some(broad) = broad_dir() else { return };
+    let dir = temp_dir("align-broad");
+    for dof in ["9", "6"] {
+        let out = dir.join(dof);
+        let (code, _, stderr) = run_paths(&[
+            &"run",
+            &broad,
+            &"--filter",
+            &"flagship",
+            &"--dof",
+            &dof,
+            &"--out",
+            &out,
+        ]);
+        assert_eq!(code, Some(0), "{stderr}");
+        let score = |align: bool| {
+            let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
+                &"eval",
+                &"--truth-dir",
+                &broad,
+                &"--est-dir",
+                &out,
+                &"--dof",
+                &dof,
+                &"--json",
+            ];
+            if align {
+                args.push(&"--align");
+            }
+            let (code, stdout, stderr) = run_paths(&args);
+            assert_eq!(code, Some(0), "{stderr}");
+            json_totals(&stdout)
+        };
+        let (plain, aligned) = (score(false), score(true));
+        assert_eq!(plain.len(), 14);
+        for ((name, p), (_, a)) in plain.iter().zip(&aligned) {
+            eprintln!("{dof}D {name}: {p:.4}° -> aligned {a:.4}°");
+            assert!(a <= p, "{dof}D {name}: aligned {a}° > {p}°");
+        }
+    }
+}
+
+/// `run --help` documents the 1 s gap limit and what a signal does (the limit appeared
+/// nowhere before).
+#[test]
+fn run_help_documents_gaps_and_signals() {
+    let (code, stdout, _) = run_paths(&[&"run", &"--help"]);
+    assert_eq!(code, Some(0));
+    for expected in [
+        "--max-dt",
+        "max_dt",
+        "max_gyr",
+        "--strict",
+        "SIGTERM",
+        "exits with code 130",
+    ] {
+        assert!(stdout.contains(expected), "{expected}: {stdout}");
+    }
+}
+
+/// Whole-number parameters refuse fractions instead of rounding them, and `--dof` cannot
+/// silently beat a different `--param dof` (both used to run: `dof=7` as 6D, `window=2.5` as
+/// 3, `--dof 9 --param dof=6` as 9D).
+#[test]
+fn parameters_refuse_fractions_and_contradictions() {
+    let dir = temp_dir("kinds");
+    let input = simulated(&dir, "x.csv", 1);
+    let out = dir.join("out");
+    for (args, expected) in [
+        (vec!["--filter", "mahony", "--param", "dof=7"], "6 or 9"),
+        (
+            vec!["--filter", "ecf-ekf", "--param", "window=2.5"],
+            "whole number",
+        ),
+        (
+            vec!["--filter", "gyro", "--param", "init_from_acc=0.5"],
+            "0 or 1",
+        ),
+        (
+            vec!["--filter", "mahony", "--dof", "9", "--param", "dof=6"],
+            "disagrees",
+        ),
+        (vec!["--filter", "mahony", "--max-dt", "0"], "--max-dt"),
+    ] {
+        let mut all: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"run", &input, &"--out", &out];
+        all.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
+        let (code, _, stderr) = run_paths(&all);
+        assert_eq!(code, Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: one line: {stderr}");
+    }
+    // The same value twice is fine.
+    let (code, _, stderr) = run_paths(&[
+        &"run",
+        &input,
+        &"--out",
+        &out,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--param",
+        &"dof=6",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+}
+
+/// The gap limit is settable: a 2 s gap is skipped by default (flag 1 at that sample) and
+/// bridged with `--max-dt 3`.
+#[test]
+fn max_dt_sets_the_gap_limit() {
+    let dir = temp_dir("maxdt");
+    let mut rec = scenario("slow-rotation", 2, 4.0, 100.0).unwrap();
+    let gap_at = 150;
+    for t in &mut rec.t[gap_at..] {
+        *t += 2.0;
+    }
+    let input = dir.join("gap.csv");
+    write_recording(&input, &rec).unwrap();
+    for (max_dt, skipped) in [(None, true), (Some("3"), false)] {
+        let out = dir.join(format!("out-{skipped}"));
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
+            &"run",
+            &input,
+            &"--out",
+            &out,
+            &"--filter",
+            &"mahony",
+            &"--flags",
+        ];
+        if let Some(v) = &max_dt {
+            args.extend([&"--max-dt" as &dyn AsRef<std::ffi::OsStr>, v]);
+        }
+        let (code, _, stderr) = run_paths(&args);
+        assert_eq!(code, Some(0), "{stderr}");
+        let flags = flags_column(&out.join("gap.csv"));
+        assert_eq!(flags[gap_at] & 1 == 1, skipped, "max_dt {max_dt:?}");
+        assert!(
+            flags
+                .iter()
+                .enumerate()
+                .all(|(k, f)| k == gap_at || f & 1 == 0)
+        );
+    }
 }

@@ -131,7 +131,7 @@ pub fn error_heading(e: Quat<f64>) -> f64 {
     2.0 * e.z.atan2(e.w)
 }
 
-fn counted(truth: &[Quat<f64>], mask: Option<&[bool]>, i: usize) -> bool {
+pub(crate) fn counted(truth: &[Quat<f64>], mask: Option<&[bool]>, i: usize) -> bool {
     let q = truth[i];
     mask.is_none_or(|m| m[i])
         && q.w.is_finite()
@@ -140,7 +140,7 @@ fn counted(truth: &[Quat<f64>], mask: Option<&[bool]>, i: usize) -> bool {
         && q.z.is_finite()
 }
 
-fn check(
+pub(crate) fn check(
     est: &[Quat<f64>],
     truth: &[Quat<f64>],
     mask: Option<&[bool]>,

@@ -150,6 +150,37 @@ pub enum ReadError {
         /// The value read.
         value: f64,
     },
+    /// An estimate value (`t`, `qw..qz` of an estimate file) is NaN or infinite.
+    #[error(
+        "{file}: line {line}, column `{column}` (#{index}): estimate value {value} is not finite"
+    )]
+    NonFiniteEstimate {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// Column name.
+        column: String,
+        /// 1-based column index.
+        index: usize,
+        /// The value read.
+        value: f64,
+    },
+    /// A quaternion (estimate or known truth) is far from unit norm, so it is no orientation:
+    /// scoring it would be meaningless (an all-zero quaternion would score as perfect).
+    #[error(
+        "{file}: line {line}: quaternion `{columns}` has norm {norm}, not 1 (within {UNIT_NORM_TOLERANCE})"
+    )]
+    NotUnitQuaternion {
+        /// The file.
+        file: PathBuf,
+        /// The line.
+        line: u64,
+        /// The quaternion's columns, `qw,qx,qy,qz`.
+        columns: &'static str,
+        /// Its norm.
+        norm: f64,
+    },
     /// The `use` cell is neither `0` nor `1`.
     #[error("{file}: line {line}, column `{column}` (#{index}): `{text}` is not 0 or 1")]
     BadUse {
@@ -219,6 +250,44 @@ pub struct IndexEntry {
     pub duration_s: Option<f64>,
 }
 
+/// How far from 1 the norm of a quaternion read may be: a quaternion written with three
+/// decimals is within 2·10⁻³ of unit norm; a zero or unnormalised one is far outside.
+pub const UNIT_NORM_TOLERANCE: f64 = 0.01;
+
+/// The quaternion is far from unit norm (NaN, i.e. unknown, is not).
+fn not_unit(q: &[f64; 4]) -> Option<f64> {
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    ((norm - 1.0).abs() > UNIT_NORM_TOLERANCE).then_some(norm)
+}
+
+/// A cell as written, for a message: lossy UTF-8 with control characters (a NUL byte, a
+/// carriage return) escaped, so the message shows what is in the file.
+fn shown(cell: &[u8]) -> String {
+    let mut out = String::new();
+    for c in String::from_utf8_lossy(cell).chars() {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// What the reader does with an IMU value (gyroscope, accelerometer, magnetometer) that is
+/// `NaN` or infinite, as wireless IMU logs write for a dropped packet.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ImuGaps {
+    /// Refuse the file ([`ReadError::NonFiniteImu`]): a filter must not be fed a silently
+    /// repaired value.
+    #[default]
+    Refuse,
+    /// Keep the value as read. Every filter screens it ([`Screened`](rootfuse_attitude::filters::Screened)): a
+    /// non-finite gyroscope skips the whole sample, a non-finite accelerometer or magnetometer
+    /// skips that correction, and each skip is counted in [`Rejections`](rootfuse_attitude::filters::Rejections).
+    Keep,
+}
+
 // Column groups, in the order their values are stored.
 const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
 const MAG: [&str; 3] = ["mx", "my", "mz"];
@@ -228,6 +297,11 @@ const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
 ///
 /// See the [module documentation](self) for the format and the errors.
 pub fn read_csv(path: impl AsRef<Path>) -> Result<Recording, ReadError> {
+    read_csv_with(path, ImuGaps::Refuse)
+}
+
+/// [`read_csv`] with a choice of what a non-finite IMU value does.
+pub fn read_csv_with(path: impl AsRef<Path>, gaps: ImuGaps) -> Result<Recording, ReadError> {
     let path = path.as_ref();
     let file = std::fs::File::open(path).map_err(|source| ReadError::Io {
         file: path.to_owned(),
@@ -239,7 +313,7 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Recording, ReadError> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    read_csv_from(reader, path, &name)
+    read_recording(reader, path, &name, gaps)
 }
 
 /// Reads one CSV recording from any reader; `file` is only used in error messages and `name`
@@ -249,7 +323,15 @@ pub fn read_csv_from<R: std::io::Read>(
     file: impl AsRef<Path>,
     name: &str,
 ) -> Result<Recording, ReadError> {
-    let file = file.as_ref();
+    read_recording(reader, file.as_ref(), name, ImuGaps::Refuse)
+}
+
+fn read_recording<R: std::io::Read>(
+    reader: R,
+    file: &Path,
+    name: &str,
+    gaps: ImuGaps,
+) -> Result<Recording, ReadError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         // Field counts are checked here so that the error can name the line.
@@ -296,12 +378,12 @@ pub fn read_csv_from<R: std::io::Read>(
                 line,
                 column: header[col].clone(),
                 index: col + 1,
-                text: String::from_utf8_lossy(&record[col]).into_owned(),
+                text: shown(&record[col]),
             })
         };
         let imu = |col: usize| -> Result<f64, ReadError> {
             let v = cell(col)?;
-            if v.is_finite() {
+            if v.is_finite() || gaps == ImuGaps::Keep {
                 Ok(v)
             } else {
                 Err(ReadError::NonFiniteImu {
@@ -361,6 +443,13 @@ pub fn read_csv_from<R: std::io::Read>(
             // A partly known quaternion is no orientation: unknown as a whole.
             if q.iter().any(|v| v.is_nan()) {
                 q = [f64::NAN; 4];
+            } else if let Some(norm) = not_unit(&q) {
+                return Err(ReadError::NotUnitQuaternion {
+                    file: file.to_owned(),
+                    line,
+                    columns: "qw,qx,qy,qz",
+                    norm,
+                });
             }
             out.push(Quat::new(q[0], q[1], q[2], q[3]));
         }
@@ -375,7 +464,7 @@ pub fn read_csv_from<R: std::io::Read>(
                         line,
                         column: header[c].clone(),
                         index: c + 1,
-                        text: String::from_utf8_lossy(&record[c]).into_owned(),
+                        text: shown(&record[c]),
                     });
                 }
             };
@@ -445,21 +534,20 @@ pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
     while let Some(line) = next_row(&mut rdr, &mut record, file, header.len())? {
         let mut v = [0.0; 5];
         for (k, &c) in cols.iter().enumerate() {
-            let text = || String::from_utf8_lossy(&record[c]).into_owned();
             let x = parse_f64(&record[c]).ok_or_else(|| ReadError::NotNumeric {
                 file: file.to_owned(),
                 line,
                 column: header[c].clone(),
                 index: c + 1,
-                text: text(),
+                text: shown(&record[c]),
             })?;
             if !x.is_finite() {
-                return Err(ReadError::NotNumeric {
+                return Err(ReadError::NonFiniteEstimate {
                     file: file.to_owned(),
                     line,
                     column: header[c].clone(),
                     index: c + 1,
-                    text: text(),
+                    value: x,
                 });
             }
             v[k] = x;
@@ -474,6 +562,14 @@ pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
                 index: cols[0] + 1,
                 value: v[0],
                 previous,
+            });
+        }
+        if let Some(norm) = not_unit(&[v[1], v[2], v[3], v[4]]) {
+            return Err(ReadError::NotUnitQuaternion {
+                file: file.to_owned(),
+                line,
+                columns: "qw,qx,qy,qz",
+                norm,
             });
         }
         est.t.push(v[0]);
@@ -649,7 +745,7 @@ pub fn read_index(path: impl AsRef<Path>) -> Result<Vec<IndexEntry>, ReadError> 
             line,
             column: header[c].clone(),
             index: c + 1,
-            text: text(c),
+            text: shown(trim(&record[c])),
         };
         let float = |c: Option<usize>| -> Result<Option<f64>, ReadError> {
             c.map(|c| parse_f64(&record[c]).ok_or_else(|| not_numeric(c)))
@@ -813,7 +909,45 @@ fn push_all(row: &mut String, values: &[f64]) {
     }
 }
 
-/// Writes header + rows to `<path>.tmp.<pid>` and renames it to `path`.
+/// The temporary file that process `pid` writes before renaming it to `path`:
+/// `<path>.tmp.<pid>`, beside it (a rename is atomic only within one file system).
+pub fn temporary_path(path: &Path, pid: u32) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_owned();
+    name.push(format!(".tmp.{pid}"));
+    path.with_file_name(name)
+}
+
+/// Temporary files of writes to `path` by other processes (`<path>.tmp.<pid>`, see
+/// [`temporary_path`]) that exist now: what a process killed while writing `path` left
+/// behind. The final `path` of such a write is either the previous complete file or absent.
+pub fn stale_temporaries(path: &Path) -> Vec<PathBuf> {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return Vec::new();
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!("{}.tmp.", name.to_string_lossy());
+    let ours = std::process::id().to_string();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .and_then(|n| n.strip_prefix(&prefix))
+                .is_some_and(|pid| {
+                    !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && pid != ours
+                })
+        })
+        .collect()
+}
+
+/// Writes header + rows to [`temporary_path`] and renames it to `path`.
 fn write_atomic(
     path: &Path,
     names: &[&str],
@@ -824,9 +958,7 @@ fn write_atomic(
         file: path.to_owned(),
         source,
     };
-    let mut tmp_name = path.file_name().unwrap_or_default().to_owned();
-    tmp_name.push(format!(".tmp.{}", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
+    let tmp = temporary_path(path, std::process::id());
     let result = (|| -> Result<(), std::io::Error> {
         let file = std::fs::File::create(&tmp)?;
         let mut w = std::io::BufWriter::with_capacity(1 << 16, file);

@@ -17,6 +17,10 @@
 //!   `use` (`0`/`1`, samples that count for error evaluation);
 //! - any other column is ignored.
 //!
+//! An IMU value that is `NaN` or infinite (a dropped packet) is an error by default
+//! ([`read_csv`]); [`read_csv_with`] and [`ImuGaps::Keep`] keep it, for the filters to skip and
+//! count (see `rootfuse_attitude::filters::Screened`).
+//!
 //! A group (`mx,my,mz` or `qw,qx,qy,qz`) is all or nothing: a partial group is an error, since
 //! a half-present magnetometer is a broken file rather than a 6D one.
 //!
