@@ -21,15 +21,16 @@
 //! # Layout
 //! Channel `c` is lane `c % LANES` of chunk `c / LANES` ([`Batch`], [`Chunk`]) when all
 //! channels share one [`FilterSpec`] ([`Batch::new`]). With per-channel parameters
-//! ([`Batch::with_channel_specs`]) channels with equal specs share chunks, in order of first
-//! appearance, and [`Batch::chunk_channels`] says which channel is in which lane; each chunk
-//! builds its filter from its own spec exactly like a scalar run, so results stay bit for bit
-//! those of scalar runs with each channel's own parameters (tested for a filter with gains in
-//! lanes and one with an `f64` parameter struct). Per-lane parameters inside one chunk would
-//! need every filter to hold its parameters as lanes; Mahony does (every gain is a `T`), the
-//! flagship does not (`SqrtEskf` keeps `p: SqrtEskfParams` in `f64` and converts per update),
-//! so grouping is the one rule that holds for every registered filter. State, time steps and
-//! rejection counters are per channel.
+//! ([`Batch::with_channel_specs`]) the parameters live in lanes: channels whose specs agree
+//! on the structural parameters (`dof`, switches, window lengths, screening limits; see
+//! [`FilterSpec::same_structure`](rootfuse_attitude::registry::FilterSpec::same_structure))
+//! share chunks in order of first appearance, each lane with its own real-valued parameters
+//! ([`LaneParams`](rootfuse_attitude::filters::LaneParams)), and
+//! [`Batch::chunk_channels`] says which channel is in which lane. Every filter converts its
+//! parameters to per-lane coefficients exactly as a scalar filter does, so results stay bit
+//! for bit those of scalar runs with each channel's own parameters (tested for every
+//! registered filter with eight different parameter sets in one `f32x8` chunk). State, time
+//! steps and rejection counters are per channel.
 //!
 //! # Tail lanes and masking
 //! The last chunk's lanes past the last channel are fed [`pad_sample`] (gyro zero, gravity

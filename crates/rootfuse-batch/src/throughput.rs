@@ -19,7 +19,7 @@ const POOL_STEPS: usize = 64;
 pub const ROUNDS: usize = 3;
 
 /// One measured mode.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ModeResult {
     /// `scalar-f32`, `scalar-f64`, `lanes-f32x8`, `lanes-f64x4` or `lanes-f32x8-threads`.
     pub mode: &'static str,
@@ -30,7 +30,7 @@ pub struct ModeResult {
 }
 
 /// The result of [`throughput`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ThroughputReport {
     /// Filter name.
     pub filter: String,
@@ -56,45 +56,8 @@ impl ThroughputReport {
     /// The JSON object `{"filter", "channels", "samples", "results": [{"mode",
     /// "updates_per_s", "ns_per_update"}]}` on one line (non-finite numbers as `null`).
     pub fn to_json(&self) -> String {
-        fn num(x: f64) -> String {
-            if x.is_finite() {
-                format!("{x}")
-            } else {
-                "null".into()
-            }
-        }
-        fn string(s: &str) -> String {
-            let mut out = String::from("\"");
-            for c in s.chars() {
-                match c {
-                    '"' => out.push_str("\\\""),
-                    '\\' => out.push_str("\\\\"),
-                    c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
-                    c => out.push(c),
-                }
-            }
-            out.push('"');
-            out
-        }
-        let results: Vec<String> = self
-            .results
-            .iter()
-            .map(|r| {
-                format!(
-                    "{{\"mode\":{},\"updates_per_s\":{},\"ns_per_update\":{}}}",
-                    string(r.mode),
-                    num(r.updates_per_s),
-                    num(r.ns_per_update)
-                )
-            })
-            .collect();
-        format!(
-            "{{\"filter\":{},\"channels\":{},\"samples\":{},\"results\":[{}]}}",
-            string(&self.filter),
-            self.channels,
-            self.samples,
-            results.join(",")
-        )
+        // Plain strings and numbers only: serialisation cannot fail.
+        serde_json::to_string(self).unwrap_or_default()
     }
 }
 
@@ -381,7 +344,7 @@ pub fn throughput(spec: &FilterSpec, channels: usize, samples: usize) -> Through
 }
 
 /// One point of [`sweep`]: `f32x8` lanes on one core at one channel count.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SweepPoint {
     /// Channels run.
     pub channels: usize,
@@ -391,8 +354,10 @@ pub struct SweepPoint {
     /// the engine uses, times the chunks).
     pub state_bytes: usize,
     /// Channel-updates per second, [`Order::ChunkMajor`].
+    #[serde(rename = "chunk_major_updates_per_s")]
     pub chunk_major: f64,
     /// Channel-updates per second, [`Order::Tick`].
+    #[serde(rename = "tick_updates_per_s")]
     pub tick: f64,
 }
 

@@ -133,24 +133,27 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         mean(|r| r.inclination),
     );
     if args.json {
-        let files: Vec<String> = rows
+        let files: Vec<serde_json::Value> = rows
             .iter()
             .map(|s| {
                 let r = &s.rmse;
-                format!(
-                    "{{\"name\": {}, \"total\": {}, \"heading\": {}, \"inclination\": {}{}}}",
-                    json_string(&s.name),
-                    r.total,
-                    r.heading,
-                    r.inclination,
-                    s.alignment.as_ref().map_or(String::new(), alignment_json)
-                )
+                let mut file = serde_json::json!({
+                    "name": s.name,
+                    "total": r.total,
+                    "heading": r.heading,
+                    "inclination": r.inclination,
+                });
+                if let Some(a) = &s.alignment {
+                    file["align"] = alignment_json(a);
+                }
+                file
             })
             .collect();
-        out!(
-            "{{\"files\": [{}], \"mean\": {{\"total\": {mt}, \"heading\": {mh}, \"inclination\": {mi}}}}}",
-            files.join(", ")
-        );
+        let json = serde_json::json!({
+            "files": files,
+            "mean": { "total": mt, "heading": mh, "inclination": mi },
+        });
+        out!("{json}");
     } else {
         out!("| file | total (deg) | heading (deg) | inclination (deg) |");
         out!("|---|---|---|---|");
@@ -208,17 +211,15 @@ fn axis_angle(q: Quat<f64>) -> String {
     )
 }
 
-/// The alignment as extra JSON fields: both rotations as `[w, x, y, z]`.
-fn alignment_json(a: &FrameAlignment) -> String {
-    let q = |q: Quat<f64>| format!("[{}, {}, {}, {}]", q.w, q.x, q.y, q.z);
-    format!(
-        ", \"align\": {{\"earth\": {}, \"sensor_to_body\": {}, \"n_used\": {}, \"n_downweighted\": {}, \"median_error\": {}}}",
-        q(a.earth),
-        q(a.sensor_to_body),
-        a.n_used,
-        a.n_downweighted,
-        a.median_error_deg
-    )
+/// The alignment as a JSON object: both rotations as `[w, x, y, z]`.
+fn alignment_json(a: &FrameAlignment) -> serde_json::Value {
+    serde_json::json!({
+        "earth": a.earth.to_array(),
+        "sensor_to_body": a.sensor_to_body.to_array(),
+        "n_used": a.n_used,
+        "n_downweighted": a.n_downweighted,
+        "median_error": a.median_error_deg,
+    })
 }
 
 /// The file of `dir` with the name of `file` (its counterpart), or an error saying that `file`
@@ -240,19 +241,4 @@ fn stem(p: &Path) -> String {
     p.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default()
-}
-
-/// A JSON string literal (quotes, backslashes and control characters escaped).
-fn json_string(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
 }

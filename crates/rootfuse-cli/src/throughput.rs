@@ -77,20 +77,8 @@ fn run_sweep(args: &ThroughputArgs, spec: &FilterSpec) -> Result<(), String> {
         .last()
         .map_or(0.0, |p| p.state_bytes as f64 / p.channels as f64);
     if args.json {
-        let rows: Vec<String> = points
-            .iter()
-            .map(|p| {
-                format!(
-                    "{{\"channels\":{},\"samples\":{},\"state_bytes\":{},\"chunk_major_updates_per_s\":{},\"tick_updates_per_s\":{}}}",
-                    p.channels, p.samples, p.state_bytes, p.chunk_major, p.tick
-                )
-            })
-            .collect();
-        out!(
-            "{{\"filter\":\"{}\",\"sweep\":[{}]}}",
-            spec.kind().name(),
-            rows.join(",")
-        );
+        let json = serde_json::json!({ "filter": spec.kind().name(), "sweep": points });
+        out!("{json}");
     } else {
         let names: Vec<String> = caches
             .iter()

@@ -295,7 +295,7 @@ const QUAT: [&str; 4] = ["qw", "qx", "qy", "qz"];
 
 /// Reads one CSV recording from a file; the recording is named after the file stem.
 ///
-/// See the [module documentation](self) for the format and the errors.
+/// See the [crate documentation](crate) for the format and the errors.
 pub fn read_csv(path: impl AsRef<Path>) -> Result<Recording, ReadError> {
     read_csv_with(path, ImuGaps::Refuse)
 }
