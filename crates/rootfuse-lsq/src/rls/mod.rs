@@ -94,6 +94,28 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// relative slack of about `n·u·κ(P)` on the covariance formed from it, which is a few units
 /// of roundoff times `n` for a well-conditioned `P`). Requires `n·p_min < p_max`.
 ///
+/// # The covariance forms and Potter at extreme forgetting
+/// The conventional and Joseph forms subtract from `P̃ = P/λ` itself, so a row with
+/// `α = 1 + w·hᵀP̃h` leaves an absolute error of about `u·α·‖P‖` (`u` the unit roundoff;
+/// Potter's square factor about `u·√α·‖P‖`), with `α` measured on the `P` the update started
+/// from. Per update (forgetting factor `λ_s`: `λ`, or 1 when not forgetting):
+///
+/// ```text
+/// λ_max(P_new) ≤ p_max·(1 + 10·n·u) + λ_s·(λ_max(P) − p_max)⁺ + Σ_rows 4·u·α_r·‖P‖
+///                (Potter: √α_r),  α_r = 1 + w_r‖h_r‖²·‖P‖/λ_s,
+/// ```
+///
+/// the rows being the measurement rows and, when forgetting, the `n` regularising
+/// pseudo-rows (`w‖h‖² = (1 − λ)/p_max`, so `α ≈ ‖P‖/(λ·p_max)`). While `u·α ≪ 1` this is
+/// a slack of a few `n·u/λ` on `p_max`, and an excess decays by `λ` per forgetting step. For
+/// `λ` of the order of `u` or below (f64: `1.1·10⁻¹⁶`, f32: `6·10⁻⁸`) it is not: the
+/// direction reset to `p_max` comes out as the rounding remainder of `P/λ`, about one ulp of
+/// it, and the excess compounds by about `u/λ` per update (found by fuzzing, f64,
+/// `λ = 10⁻³⁰`, `p_max = 10¹⁰`: `P = 10¹⁰ → 2⁸⁰ ≈ 1.2·10²⁴ → 2¹²⁷ ≈ 1.7·10³⁸`, one ulp of
+/// `10⁴⁰` and of `1.2·10⁵⁴`) until `P/λ` overflows and updates are refused
+/// (`rejected_numerical`). Use a factored form (Bierman U-D, inverse or information QR) when
+/// `λ` may be that small.
+///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
 ///   `P⁻¹ ← λ P⁻¹ + (1 − λ)/p_max · I` instead of `λ P⁻¹`. If `P⁻¹ ⪰ I/p_max` before, it
