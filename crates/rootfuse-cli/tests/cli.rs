@@ -244,8 +244,8 @@ fn stress_json_has_the_specified_keys() {
     assert!(json.trim_start().starts_with('[') && json.trim_end().ends_with(']'));
     let rows = json.matches("\"form\"").count();
     assert!(
-        rows >= 6 * 2 * 7,
-        "every form, both precisions, seven deltas: {rows} rows"
+        rows >= 6 * 2 * 13,
+        "every form, both precisions, thirteen deltas: {rows} rows"
     );
     for key in [
         "precision",
@@ -253,6 +253,9 @@ fn stress_json_has_the_specified_keys() {
         "param",
         "steps",
         "max_rel_err",
+        "max_rel_err_received",
+        "health_kind",
+        "health_worst",
         "pd_lost_at",
         "nan_at",
         "detected",
