@@ -25,9 +25,10 @@ const MAX_OPS: usize = 200;
 /// formed covariance has a non-negative diagonal; with covariance
 /// bounds, `P ⪯ p_max·I` up to a relative `10·n·u` for the factored forms (times the pivot
 /// ratio for the formed `P`), and for the conventional, Joseph and Potter forms up to the
-/// per-update bound of `CovarianceBounds` (rounding `4u·α·‖P‖`, resp. `4u·√α·‖P‖`, per row,
-/// α measured on the `P` before the update, plus the forgetting's contraction of a previous
-/// excess), carried from update to update.
+/// per-update bound of `CovarianceBounds` (per row `4u·(‖P‖/λ_s + α·L)`, Potter
+/// `4u·(√(L·‖P‖/λ_s) + √α·L)`, `L = max(p_max, ‖P‖)`, measured on the `P` before the
+/// update, plus the forgetting's contraction of a previous excess), carried from update to
+/// update.
 pub fn rls_forms(data: &[u8]) {
     let mut input = Bytes::new(data);
     let sel = input.u8();
@@ -289,23 +290,33 @@ fn run<T, F, const N: usize>(
         if let Some(b) = config.bounds
             && b.p_max.is_finite()
         {
-            // The loss of this operation (see `p_norm`): every valid row and, with forgetting,
-            // the n regularising pseudo-rows (w·‖h‖² = (1 − λ)/p_max), each at the P it
-            // started from (at most p_norm/λ), plus the contraction of an excess by the exact
-            // regularised forgetting (an eigenvalue p > p_max maps below p_max + λ(p − p_max)).
+            // The loss of this operation (see `p_norm`), per valid row and, with forgetting,
+            // per regularising pseudo-row (w·‖h‖² = (1 − λ)/p_max), with N = p_norm the size of
+            // the P the update started from and L = max(p_max, N) the size of the result: the
+            // subtraction from P̃ = P/λ_s rounds at P̃'s scale (covariance forms u·N/λ_s;
+            // Potter's factor u·√(N/λ_s), times √L in P; found: Potter, f64, P₀ = 1e-3·I,
+            // λ = 1e-30, p_max = 1e5 ended at p_max + 4.2), and a row with
+            // α = 1 + w·hᵀ(P/λ_s)h loses u·α (Potter u·√α) relative at the result's scale.
+            // Plus the contraction of an excess by the exact regularised forgetting (an
+            // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
             let covariance_form = matches!(name, "conventional" | "joseph");
             let (loss, contracted) = if covariance_form || name == "potter" {
                 let reg = (1.0 - lambda_step) / b.p_max;
-                let alphas = rows
+                let large = b.p_max.max(p_norm);
+                let loss: f64 = rows
                     .iter()
                     .copied()
                     .chain((0..N).map(|_| reg))
-                    .map(|wh2| 1.0 + wh2 * p_norm / lambda_step);
-                let loss: f64 = if covariance_form {
-                    alphas.map(|a| 4.0 * T::EPSILON * a * p_norm).sum()
-                } else {
-                    alphas.map(|a| 4.0 * T::EPSILON * a.sqrt() * p_norm).sum()
-                };
+                    .map(|wh2| {
+                        let alpha = 1.0 + wh2 * p_norm / lambda_step;
+                        4.0 * T::EPSILON
+                            * if covariance_form {
+                                p_norm / lambda_step + alpha * large
+                            } else {
+                                (large * p_norm / lambda_step).sqrt() + alpha.sqrt() * large
+                            }
+                    })
+                    .sum();
                 let excess = (p_norm - b.p_max).max(0.0);
                 (loss, lambda_step * excess)
             } else {
