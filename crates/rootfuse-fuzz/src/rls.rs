@@ -26,8 +26,8 @@ const MAX_OPS: usize = 200;
 /// bounds, `P ⪯ p_max·I` up to a relative `10·n·u` for the factored forms (times the pivot
 /// ratio for the formed `P`), and for the conventional, Joseph and Potter forms up to the
 /// per-update bound of `CovarianceBounds` (per row `4u·(‖P‖/λ_s + α·L)`, Potter
-/// `4u·(√(L·‖P‖/λ_s) + √α·L)`, `L = max(p_max, ‖P‖)`, measured on the `P` before the
-/// update, plus the forgetting's contraction of a previous excess), carried from update to
+/// `4u·(√(L·‖P‖/λ_s) + √α·L)` plus `(Σ_rows 4u·√(‖P‖/λ_s))²`, `L = max(p_max, ‖P‖)`,
+/// measured on the `P` before the update, plus the forgetting's contraction of a previous excess), carried from update to
 /// update.
 pub fn rls_forms(data: &[u8]) {
     let mut input = Bytes::new(data);
@@ -317,8 +317,19 @@ fn run<T, F, const N: usize>(
                             }
                     })
                     .sum();
+                // Potter's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
+                // which dominates once λ ≲ u² (found: λ = 1.5e-47, P₀ = 1e-3·I, p_max = 100
+                // ended at 1.1e12, about (u·‖S/√λ‖)²).
+                let factor_rounding: f64 = if covariance_form {
+                    0.0
+                } else {
+                    (rows.len() + N) as f64 * 4.0 * T::EPSILON * (p_norm / lambda_step).sqrt()
+                };
                 let excess = (p_norm - b.p_max).max(0.0);
-                (loss, lambda_step * excess)
+                (
+                    loss + factor_rounding * factor_rounding,
+                    lambda_step * excess,
+                )
             } else {
                 (0.0, 0.0)
             };

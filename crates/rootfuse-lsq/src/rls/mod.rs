@@ -108,6 +108,7 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// λ_max(P_new) ≤ p_max·(1 + 10·n·u) + λ_s·(λ_max(P) − p_max)⁺
 ///                + Σ_rows 4·u·(‖P‖/λ_s + α_r·L)              (conventional, Joseph)
 ///                + Σ_rows 4·u·(√(L·‖P‖/λ_s) + √α_r·L)        (Potter)
+///                + (Σ_rows 4·u·√(‖P‖/λ_s))²                   (Potter: δS·δSᵀ)
 /// α_r = 1 + w_r‖h_r‖²·‖P‖/λ_s
 /// ```
 ///
@@ -118,7 +119,8 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// `λ = 10⁻³⁰`, `p_max = 10¹⁰`, conventional: `P = 10¹⁰ → 2⁸⁰ ≈ 1.2·10²⁴ → 2¹²⁷ ≈ 1.7·10³⁸`,
 /// one ulp of `10⁴⁰` and of `1.2·10⁵⁴`) until `P/λ` overflows and updates are refused
 /// (`rejected_numerical`); Potter from `P₀ = 10⁻³·I` with `p_max = 10⁵` ends at `p_max + 4.2`
-/// after one update. Use Bierman U-D or inverse or information QR when `λ` may be that small.
+/// after one update at `λ = 10⁻³⁰`, and with `p_max = 100` at `1.1·10¹²` at `λ = 1.5·10⁻⁴⁷`
+/// (below `u²`, where the square of the factor's rounding dominates). Use Bierman U-D or inverse or information QR when `λ` may be that small.
 ///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
