@@ -715,6 +715,30 @@ fn windup_is_bounded_or_reported() -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// With bounds, a huge process noise is scaled to the room left under `p_max` without going
+/// through a subnormal factor `room/q` (found by fuzzing: `q = f64::MAX` ended `2e-12`
+/// relative above `p_max`; corpus `regression-bierman-time-update-subnormal-scale`).
+#[test]
+fn bounded_time_update_with_huge_noise_stays_below_p_max() {
+    let p_max = 1e-4;
+    let config = RlsConfig::new(0.9).with_bounds(0.0, p_max);
+    for k in 1..=40 {
+        let p0 = p_max * (1.0 - k as f64 * 1e-3);
+        let mut ud = BiermanUd::<f64, 1>::with_isotropic_prior(&Vector::zeros(), p0, config)
+            .expect("valid prior");
+        assert!(ud.time_update(&Vector::from_column([f64::MAX])));
+        let p = ud.covariance().m[0][0];
+        assert!(
+            p <= p_max * (1.0 + 4.0 * f64::EPSILON),
+            "k = {k}: P = {p:e}"
+        );
+        assert!(
+            p >= p_max * (1.0 - 4.0 * f64::EPSILON),
+            "k = {k}: P = {p:e}"
+        );
+    }
+}
+
 #[test]
 fn thornton_time_update_adds_process_noise() {
     let x0 = Vector::<f64, 3>::zeros();
