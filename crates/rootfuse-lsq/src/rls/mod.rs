@@ -120,7 +120,10 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// one ulp of `10⁴⁰` and of `1.2·10⁵⁴`) until `P/λ` overflows and updates are refused
 /// (`rejected_numerical`); Potter from `P₀ = 10⁻³·I` with `p_max = 10⁵` ends at `p_max + 4.2`
 /// after one update at `λ = 10⁻³⁰`, and with `p_max = 100` at `1.1·10¹²` at `λ = 1.5·10⁻⁴⁷`
-/// (below `u²`, where the square of the factor's rounding dominates). Use Bierman U-D or inverse or information QR when `λ` may be that small.
+/// (below `u²`, where the square of the factor's rounding dominates). Prefer Bierman U-D or
+/// inverse or information QR when `λ` may be small; far below `u²` their upper bound is not
+/// established either (open fuzz finding: inverse QR in f32 at `λ = 1.2·10⁻²⁵` ended
+/// `4.9·10⁻⁵` relative above `p_max`; ROBUSTNESS.md).
 ///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
