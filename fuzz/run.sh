@@ -30,6 +30,12 @@ for t in "${targets[@]}"; do
     grep -E 'stat::number_of_executed_units' "fuzz/target/$t.log" || true
 done
 for t in "${targets[@]}"; do
+    # cmin renames what it keeps to content hashes and drops what adds no coverage; the named
+    # regression inputs are documented (ROBUSTNESS.md), so they are put back afterwards.
+    keep="$(mktemp -d)"
+    find "fuzz/corpus/$t" -maxdepth 1 -name 'regression-*' -exec cp {} "$keep/" \;
     cargo fuzz cmin --sanitizer none --release "$t" "fuzz/corpus/$t" -- -max_len=4096 >/dev/null 2>&1 || true
+    cp "$keep"/regression-* "fuzz/corpus/$t/" 2>/dev/null || true
+    rm -rf "$keep"
 done
 exit "$status"

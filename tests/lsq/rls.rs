@@ -715,6 +715,30 @@ fn windup_is_bounded_or_reported() -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// With bounds, a huge process noise is scaled to the room left under `p_max` without going
+/// through a subnormal factor `room/q` (found by fuzzing: `q = f64::MAX` ended `2e-12`
+/// relative above `p_max`; corpus `regression-bierman-time-update-subnormal-scale`).
+#[test]
+fn bounded_time_update_with_huge_noise_stays_below_p_max() {
+    let p_max = 1e-4;
+    let config = RlsConfig::new(0.9).with_bounds(0.0, p_max);
+    for k in 1..=40 {
+        let p0 = p_max * (1.0 - k as f64 * 1e-3);
+        let mut ud = BiermanUd::<f64, 1>::with_isotropic_prior(&Vector::zeros(), p0, config)
+            .expect("valid prior");
+        assert!(ud.time_update(&Vector::from_column([f64::MAX])));
+        let p = ud.covariance().m[0][0];
+        assert!(
+            p <= p_max * (1.0 + 4.0 * f64::EPSILON),
+            "k = {k}: P = {p:e}"
+        );
+        assert!(
+            p >= p_max * (1.0 - 4.0 * f64::EPSILON),
+            "k = {k}: P = {p:e}"
+        );
+    }
+}
+
 #[test]
 fn thornton_time_update_adds_process_noise() {
     let x0 = Vector::<f64, 3>::zeros();
@@ -837,6 +861,42 @@ fn vector_measurement_forgets_once() {
     assert!((a.covariance() - p_ref2).max_abs() < 1e-14);
 }
 
+/// Joseph's result depends on how the product is evaluated. In the Dyer–McReynolds example in
+/// f32 at δ = 1e-3 (exact smallest eigenvalue of P after step 2: δ²/6 ≈ 1.7e-7), the textbook
+/// evaluation, forming `A = I − k hᵀ` and then `A P Aᵀ + k kᵀ`, is already indefinite after
+/// step 2; the library's rank-one evaluation (`M = P − k uᵀ`, `P = M − (M h) kᵀ + k kᵀ`) is
+/// not (ROBUSTNESS.md, `rls::joseph`).
+#[test]
+fn joseph_evaluation_keeps_dyer_mcreynolds_definite_where_the_textbook_product_does_not() {
+    let delta = 1e-3f32;
+    let rows = [[1.0, 1.0, 1.0], [1.0, 1.0, 1.0 + delta]];
+    let weight = 1.0 / (delta * delta);
+    let to64 = |p: &Mat<f32, 3, 3>| Mat::<f64, 3, 3>::from_fn(|i, j| f64::from(p.m[i][j]));
+    // Definite in f64 (the f64 Cholesky of an f32 matrix is exact enough to tell at 1e-7).
+    let definite = |p: &Mat<f32, 3, 3>| {
+        let (l, ok) = to64(p).cholesky();
+        ok && (0..3).all(|j| l.m[j][j] * l.m[j][j] > 1e-9)
+    };
+    let mut textbook = Mat::<f32, 3, 3>::identity();
+    let mut library =
+        Joseph::<f32, 3>::with_isotropic_prior(&Vector::zeros(), 1.0, RlsConfig::new(1.0)).unwrap();
+    for row in rows {
+        let h = Vector::from_column(row).scale(weight.sqrt());
+        let u = textbook * h;
+        let k = u.scale(1.0 / (h.dot(&u) + 1.0));
+        let a = Mat::<f32, 3, 3>::identity() - k * h.transpose();
+        textbook = a * textbook * a.transpose() + k * k.transpose();
+        let z = row.iter().sum::<f32>();
+        assert!(library.update(&Vector::from_column(row), z, weight));
+    }
+    assert!(!definite(&textbook), "textbook {textbook:?}");
+    assert!(
+        definite(&library.covariance()),
+        "{:?}",
+        library.covariance()
+    );
+}
+
 #[test]
 fn stress_scenarios_run_short() {
     use rootfuse_lsq::stress::{SCENARIOS, StressOptions, run_all, run_scenario};
@@ -844,8 +904,8 @@ fn stress_scenarios_run_short() {
         long: false,
         scale: 1e-3,
     });
-    // 7 δ + 2 benign + 1 non-persistent + 2 windup + 1 λ = 1 + 3 Hilbert, 6 forms × 2 types.
-    assert_eq!(rows.len(), 16 * 12);
+    // 13 δ + 2 benign + 1 non-persistent + 2 windup + 1 λ = 1 + 3 Hilbert, 6 forms × 2 types.
+    assert_eq!(rows.len(), 22 * 12);
     assert!(run_scenario("nope", StressOptions::default()).is_none());
     for r in &rows {
         assert!(SCENARIOS.contains(&r.scenario) && r.steps > 0 && r.ns_per_update > 0.0);
@@ -858,6 +918,34 @@ fn stress_scenarios_run_short() {
             if r.pd_lost_at.is_some() {
                 assert!(r.detected, "{r:?}");
             }
+            // δ = 2⁻ᵏ, k ≤ 20: the f32 data are exact, so both references are the same
+            // solution; at δ = 2⁻¹³ (and √w = 2¹³, an exact scaling) the factored forms' own
+            // error is a few 1e-5 (at δ = 1e-4 it is about 1e-3: the rounding of the whitened
+            // z·√w ≈ 45002 alone is that much of the innovation 2δ·√w = 2).
+            let exact_in_f32 = delta.log2().fract() == 0.0 && delta >= 2f64.powi(-20);
+            if exact_in_f32 {
+                assert_eq!(r.max_rel_err, r.max_rel_err_received, "{r:?}");
+            } else if factored {
+                assert_ne!(r.max_rel_err, r.max_rel_err_received, "{r:?}");
+            }
+            if factored && delta == 2f64.powi(-13) {
+                assert!(r.max_rel_err_received < 1e-4, "{r:?}");
+            }
+        }
+        if r.precision == "f64" {
+            assert_eq!(r.max_rel_err, r.max_rel_err_received, "{r:?}");
+        }
+        // The health figures: a positive definite factored state in well-posed scenarios.
+        if factored && matches!(r.scenario, "benign" | "lambda-one") {
+            let h = r.health_worst;
+            match r.health_kind {
+                "kappa(S)" | "kappa(R)" => assert!(h.is_finite() && h >= 1.0, "{r:?}"),
+                "min_d/max_d" => assert!(h > 0.0 && h <= 1.0, "{r:?}"),
+                k => panic!("{k} for {}", r.form),
+            }
+        }
+        if !factored {
+            assert_eq!(r.health_kind, "lambda_min/lambda_max", "{r:?}");
         }
         if r.scenario == "windup" || r.scenario == "non-persistent" {
             assert!(r.nan_at.is_none(), "{r:?}");

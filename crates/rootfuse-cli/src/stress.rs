@@ -58,23 +58,27 @@ pub fn run(args: &StressArgs) -> Result<(), String> {
         crate::plot::stress_trace(path, &title, &series)?;
     }
     if args.json {
-        let objects: Vec<String> = rows.iter().map(json_row).collect();
-        out!("[{}]", objects.join(",\n "));
+        let rows: Vec<serde_json::Value> = rows.iter().map(json_row).collect();
+        let text = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        out!("{text}");
     } else {
         out!(
-            "| form | precision | scenario | param | steps | max rel err | PD lost at | NaN at | detected | ns/update |"
+            "| form | precision | scenario | param | steps | max rel err (f64 data) | max rel err (received data) | health figure | worst | PD lost at | NaN at | detected | ns/update |"
         );
-        out!("|---|---|---|---|---|---|---|---|---|---|");
+        out!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
         let opt = |v: Option<u64>| v.map_or("-".to_string(), |s| s.to_string());
         for r in &rows {
             out!(
-                "| {} | {} | {} | {} | {} | {:.2e} | {} | {} | {} | {:.0} |",
+                "| {} | {} | {} | {} | {} | {:.2e} | {:.2e} | {} | {:.2e} | {} | {} | {} | {:.0} |",
                 r.form,
                 r.precision,
                 r.scenario,
                 r.param.map_or("-".to_string(), |p| format!("{p:e}")),
                 r.steps,
                 r.max_rel_err,
+                r.max_rel_err_received,
+                r.health_kind,
+                r.health_worst,
                 opt(r.pd_lost_at),
                 opt(r.nan_at),
                 r.detected,
@@ -85,28 +89,22 @@ pub fn run(args: &StressArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// A JSON number; NaN and infinities (which JSON cannot write) become `null`.
-fn number(x: f64) -> String {
-    if x.is_finite() {
-        format!("{x:e}")
-    } else {
-        "null".into()
-    }
-}
-
-fn json_row(r: &StressRow) -> String {
-    let step = |v: Option<u64>| v.map_or("null".to_string(), |s| s.to_string());
-    format!(
-        "{{\"form\": \"{}\", \"precision\": \"{}\", \"scenario\": \"{}\", \"param\": {}, \"steps\": {}, \"max_rel_err\": {}, \"pd_lost_at\": {}, \"nan_at\": {}, \"detected\": {}, \"ns_per_update\": {}}}",
-        r.form,
-        r.precision,
-        r.scenario,
-        r.param.map_or("null".to_string(), number),
-        r.steps,
-        number(r.max_rel_err),
-        step(r.pd_lost_at),
-        step(r.nan_at),
-        r.detected,
-        number(r.ns_per_update)
-    )
+/// One row as a JSON object; NaN and infinities (which JSON cannot write) become `null`
+/// (serde_json writes non-finite floats as `null`).
+fn json_row(r: &StressRow) -> serde_json::Value {
+    serde_json::json!({
+        "form": r.form,
+        "precision": r.precision,
+        "scenario": r.scenario,
+        "param": r.param,
+        "steps": r.steps,
+        "max_rel_err": r.max_rel_err,
+        "max_rel_err_received": r.max_rel_err_received,
+        "health_kind": r.health_kind,
+        "health_worst": r.health_worst,
+        "pd_lost_at": r.pd_lost_at,
+        "nan_at": r.nan_at,
+        "detected": r.detected,
+        "ns_per_update": r.ns_per_update,
+    })
 }

@@ -23,7 +23,12 @@ const MAX_OPS: usize = 200;
 /// finite and `> 0` for moderate data (the represented covariance is positive definite; see
 /// `run` for the range), `≥ 0` for any data (semidefinite: a variance may underflow) and the
 /// formed covariance has a non-negative diagonal; with covariance
-/// bounds, `P ⪯ p_max·I` up to a relative `10·n·u`.
+/// bounds, `P ⪯ p_max·I` up to a relative `10·n·u` for the factored forms (times the pivot
+/// ratio for the formed `P`), and for the conventional, Joseph and Potter forms up to the
+/// per-update bound of `CovarianceBounds` (per row `4u·(‖P‖/λ_s + α·L)`, Potter
+/// `4u·(√(L·‖P‖/λ_s) + √α·L)` plus `(Σ_rows 4u·√(‖P‖/λ_s))²`, `L = max(p_max, ‖P‖)`,
+/// measured on the `P` before the update, plus the forgetting's contraction of a previous excess), carried from update to
+/// update.
 pub fn rls_forms(data: &[u8]) {
     let mut input = Bytes::new(data);
     let sel = input.u8();
@@ -83,6 +88,15 @@ fn config_from(input: &mut Bytes, single: bool) -> RlsConfig {
         config.with_bounds(p_min, p_max)
     } else {
         config
+    }
+}
+
+/// Records `w·‖h‖²` of a row the forms accept as input (finite, `w > 0`); a NaN product
+/// (`0·∞` cannot occur for accepted rows, but `∞` can) counts as unbounded.
+fn note_row(rows: &mut Vec<f64>, h2: f64, w: f64) {
+    if h2.is_finite() && w.is_finite() && w > 0.0 {
+        let wh2 = w * h2;
+        rows.push(if wh2.is_nan() { f64::INFINITY } else { wh2 });
     }
 }
 
@@ -160,21 +174,14 @@ fn run<T, F, const N: usize>(
         let a = Into::<f64>::into(v).abs();
         *moderate &= a == 0.0 || (1e-3..=1e3).contains(&a);
     };
-    // Potter's square factor loses about u·√α of relative accuracy in one update with
-    // α = 1 + w·hᵀ(P/λ)h, the covariance forms u·α (ROBUSTNESS.md); with bounds the
-    // pseudo-measurements have α ≤ 1 + 1/λ. The largest α seen widens their p_max tolerance.
-    let p_scale = config
-        .bounds
-        .map_or(Into::<f64>::into(p0), |b| b.p_max.min(1e300));
-    let mut alpha_max = 1.0 + 1.0 / config.lambda;
-    // Rejected samples (non-finite, w ≤ 0) do not count; an accepted one whose α overflows
-    // leaves Potter's bound unchecked.
-    let note_alpha = |alpha_max: &mut f64, h2: f64, w: f64| {
-        if h2.is_finite() && w.is_finite() && w > 0.0 {
-            let a = 1.0 + w * h2 * p_scale / config.lambda;
-            *alpha_max = alpha_max.max(if a.is_nan() { f64::INFINITY } else { a });
-        }
-    };
+    // The covariance forms subtract P̃·h·hᵀ·P̃/α from P̃ = P/λ itself: one row loses about u·α
+    // of P's accuracy, α = 1 + w·hᵀ(P/λ)h; Potter's square factor u·√α (ROBUSTNESS.md). With
+    // bounds, α is measured on the P *before* the update, not on p_max: when u·α ≳ 1 (e.g.
+    // λ ≲ u) the excess of one update inflates the next update's α and the loss compounds
+    // (found: f64, λ = 1e-30, p_max = 1e10: P went 1e10 → 1.2e24 = 2⁸⁰ → 1.7e38 = 2¹²⁷ in two
+    // updates, each one ulp of P/λ; corpus `regression-conventional-bounds-compounding`).
+    // `p_norm` is a certified upper bound of λ_max(P) carried from the last check.
+    let mut p_norm = Into::<f64>::into(p0) * (1.0 + n_eps);
     for op in 0..MAX_OPS {
         if input.is_empty() {
             break;
@@ -182,6 +189,9 @@ fn run<T, F, const N: usize>(
         let (x_before, p_before, h_before) = (f.estimate(), f.covariance(), f.health());
         let kind = input.u8();
         let mut scalar_input_ok = None;
+        // w·‖h‖² of this operation's valid rows, and its forgetting factor.
+        let mut rows: Vec<f64> = Vec::new();
+        let mut lambda_step = config.lambda;
         if let (7, Some(extra)) = (kind % 8, extra) {
             let q = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
             q.m.iter().for_each(|r| track(&mut moderate, r[0]));
@@ -200,7 +210,7 @@ fn run<T, F, const N: usize>(
                 .for_each(|&v| track(&mut moderate, v));
             for (row, wi) in h.m.iter().zip(w.m.iter()) {
                 let h2: f64 = row.iter().map(|&v| Into::<f64>::into(v).powi(2)).sum();
-                note_alpha(&mut alpha_max, h2, Into::<f64>::into(wi[0]));
+                note_row(&mut rows, h2, Into::<f64>::into(wi[0]));
             }
             f.update_vector(&h, &z, &w);
         } else {
@@ -209,11 +219,14 @@ fn run<T, F, const N: usize>(
             let w = T::from_f64(input.value(single));
             h.m.iter().for_each(|r| track(&mut moderate, r[0]));
             track(&mut moderate, w);
-            note_alpha(
-                &mut alpha_max,
+            note_row(
+                &mut rows,
                 Into::<f64>::into(h.dot(&h)),
                 Into::<f64>::into(w),
             );
+            if kind & 16 == 0 {
+                lambda_step = 1.0;
+            }
             let applied = f.update_with_forgetting(&h, z, w, kind & 16 != 0);
             let input_ok = h.is_finite()
                 && h.dot(&h).is_finite()
@@ -277,33 +290,83 @@ fn run<T, F, const N: usize>(
         if let Some(b) = config.bounds
             && b.p_max.is_finite()
         {
-            // The covariance forms subtract P·h·hᵀ·P/α from P itself: one update with a large α
-            // loses about u·α of P's relative accuracy (found: λ = 1e-30 left P at 1.2e24 with
-            // p_max = 1e10); Potter's square factor loses u·√α.
-            let potter_loss = match name {
-                "potter" => 4.0 * T::EPSILON * alpha_max.sqrt(),
-                "conventional" | "joseph" => 4.0 * T::EPSILON * alpha_max,
-                _ => 0.0,
+            // The loss of this operation (see `p_norm`), per valid row and, with forgetting,
+            // per regularising pseudo-row (w·‖h‖² = (1 − λ)/p_max), with N = p_norm the size of
+            // the P the update started from and L = max(p_max, N) the size of the result: the
+            // subtraction from P̃ = P/λ_s rounds at P̃'s scale (covariance forms u·N/λ_s;
+            // Potter's factor u·√(N/λ_s), times √L in P; found: Potter, f64, P₀ = 1e-3·I,
+            // λ = 1e-30, p_max = 1e5 ended at p_max + 4.2), and a row with
+            // α = 1 + w·hᵀ(P/λ_s)h loses u·α (Potter u·√α) relative at the result's scale.
+            // Plus the contraction of an excess by the exact regularised forgetting (an
+            // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
+            let covariance_form = matches!(name, "conventional" | "joseph");
+            let (loss, contracted) = if covariance_form || name == "potter" {
+                let reg = (1.0 - lambda_step) / b.p_max;
+                let large = b.p_max.max(p_norm);
+                let loss: f64 = rows
+                    .iter()
+                    .copied()
+                    .chain((0..N).map(|_| reg))
+                    .map(|wh2| {
+                        let alpha = 1.0 + wh2 * p_norm / lambda_step;
+                        4.0 * T::EPSILON
+                            * if covariance_form {
+                                p_norm / lambda_step + alpha * large
+                            } else {
+                                (large * p_norm / lambda_step).sqrt() + alpha.sqrt() * large
+                            }
+                    })
+                    .sum();
+                // Potter's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
+                // which dominates once λ ≲ u² (found: λ = 1.5e-47, P₀ = 1e-3·I, p_max = 100
+                // ended at 1.1e12, about (u·‖S/√λ‖)²).
+                let factor_rounding: f64 = if covariance_form {
+                    0.0
+                } else {
+                    (rows.len() + N) as f64 * 4.0 * T::EPSILON * (p_norm / lambda_step).sqrt()
+                };
+                let excess = (p_norm - b.p_max).max(0.0);
+                (
+                    loss + factor_rounding * factor_rounding,
+                    lambda_step * excess,
+                )
+            } else {
+                (0.0, 0.0)
             };
             // The bound is kept on the stored factor, so the formed P can exceed it by its
             // rounding, about n·u·κ(P) relative; the factor's pivot ratio stands in for κ (found:
             // information QR at κ ≈ 7e8 overshot the plain 10·n·u slack).
             let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
             let ratio = if factored { (hi / lo).max(1.0) } else { 1.0 };
-            let slack = 1.0 + 10.0 * n_eps * ratio + potter_loss;
-            let limit = T::from_f64(b.p_max * slack);
+            let limit64 = b.p_max * (1.0 + 10.0 * n_eps * ratio) + contracted + loss;
+            let limit = T::from_f64(limit64);
             let room = Mat::<T, N, N>::identity().scale(limit) - p;
             // A slack beyond the lane type's range leaves nothing to check; nor does a factored
             // form's P formed at a pivot ratio beyond 1/(n·u), whose rounding can exceed any
             // bound (ROBUSTNESS.md; found: information QR with h entries of 1e50, pivot ratio
             // 1e99, formed P_11 = 1e19 where the exact value is below p_max).
             let well_conditioned = !factored || hi <= lo / n_eps;
-            let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned;
+            // An unchanged P was checked before (its bound carries over).
+            let unchanged = bits(&p) == bits(&p_before);
+            let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned && !unchanged;
             assert!(
                 !checkable || room.cholesky().1,
-                "{name} op {op}: P above p_max = {}: {p:?}",
+                "{name} op {op}: P above p_max = {} (allowed {limit64:e}): {p:?}",
                 b.p_max
             );
+            if !unchanged {
+                // Both are upper bounds of λ_max(P): the limit just checked (when it was) and
+                // the largest absolute row sum.
+                let row_sum =
+                    p.m.iter()
+                        .map(|r| r.iter().map(|&v| Into::<f64>::into(v).abs()).sum::<f64>())
+                        .fold(0.0, f64::max);
+                p_norm = if checkable {
+                    row_sum.min(limit64)
+                } else {
+                    row_sum
+                };
+            }
         }
     }
 }

@@ -108,8 +108,13 @@ impl<T: Lane, const N: usize> BiermanUd<T, N> {
         let mut q = Mat::select(input_ok, q, &Mat::zeros());
         if self.core.bounded() {
             let room = (self.core.p_max() - self.trace_p()).max(zero);
-            // qsum > room ≥ 0 guarantees a positive divisor.
-            q = q.scale(T::select(qsum.simd_gt(room), room / qsum, T::one()));
+            // q_j·(room/qsum) would round the factor room/qsum, which underflows into the
+            // subnormals for a huge q (found by fuzzing: q = f64::MAX, room ≈ 1e-7 made the
+            // factor 5.6e-316, 1e-8 relative precision, and P ended 2e-12 above p_max);
+            // (q_j/qsum)·room has ratios ≤ 1 and rounds twice. qsum > room ≥ 0 guarantees a
+            // positive divisor in the lanes that use it.
+            let shrink = qsum.simd_gt(room);
+            q = Mat::from_fn(|j, _| T::select(shrink, (q[j] / qsum) * room, q[j]));
         }
         // Rows of W = [U | I]: `wu` holds the U part, `wq` the identity part.
         let mut wu = self.u;

@@ -26,6 +26,10 @@
 //! `rejected_numerical` and is flagged in [`Health::lost_definiteness`] (sticky). For scalar
 //! types, [`try_update`](Conventional::try_update) turns the outcome into a [`Result`].
 //!
+//! With covariance bounds and a forgetting factor near the unit roundoff the upper bound holds
+//! only up to the per-update rounding stated on [`CovarianceBounds`](super::CovarianceBounds)
+//! (the same for the [Joseph](super::joseph) form).
+//!
 //! [`Health::lost_definiteness`]: super::Health::lost_definiteness
 
 use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, is_definite, min_max};

@@ -7,9 +7,21 @@
 //! P ← (I − k hᵀ) P̃ (I − k hᵀ)ᵀ + k kᵀ,   then symmetrised
 //! ```
 //! The Joseph form is a sum of positive semidefinite terms and is insensitive to first-order
-//! errors in the gain `k` (Bucy & Joseph 1968; Bierman 1977, ch. II). Because `I − k hᵀ` is a
-//! rank-one correction of the identity, both products are evaluated in O(n²) without
-//! forming it: `M = P̃ − k uᵀ`, then `P = M − (M h) kᵀ + k kᵀ`.
+//! errors in the gain `k` (Bucy & Joseph 1968; Bierman 1977, ch. II).
+//!
+//! # Which evaluation
+//! The result depends on how the product is evaluated, and this form does *not* use the
+//! textbook one. Because `I − k hᵀ` is a rank-one correction of the identity, both products
+//! are evaluated in O(n²) without forming it: `M = P̃ − k uᵀ` (one fused multiply-add per
+//! entry), then `P = M − (M h) kᵀ + k kᵀ`, then symmetrised. Why: the textbook evaluation
+//! forms `A = I − k hᵀ` in working precision and multiplies `A P̃ Aᵀ` (O(n³)); each entry of
+//! the rounded `A` carries an absolute error of about `u`, which the products carry into
+//! every entry of `P`, while here `k − M h` is a small difference of two nearly equal vectors
+//! (`M h = k` exactly) and the error of the rank-one terms scales with `P`'s own entries. In
+//! the Dyer–McReynolds example in f32 the textbook evaluation is already indefinite after the
+//! second measurement at `δ = 10⁻³` (smallest eigenvalue `−9·10⁻⁶`; the exact one is
+//! `δ²/6 ≈ 1.7·10⁻⁷`), this one keeps `1.8·10⁻⁷` there and fails at `δ = 10⁻⁴`, like the
+//! conventional form (test `rls::joseph_evaluation_keeps_dyer_mcreynolds_definite_where_the_textbook_product_does_not`).
 //! It does not protect against errors in `P̃` itself (in the Dyer–McReynolds example it fails
 //! like the conventional form), so it carries the same definiteness checks as the
 //! [conventional](super::conventional) form (flagged in
