@@ -1,6 +1,6 @@
 //! Many channels through the SIMD batch engine (`rootfuse_batch`), on all cores.
 
-use crate::arrays::{FloatArray, Steps, float_array, positive, same_length, vector};
+use crate::arrays::{FloatArray, Steps, float_array, positive, vector};
 use crate::filter::{Inputs, rejections_dict, spec_from};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -232,7 +232,12 @@ pub fn run_many<'py>(
     let specs: Vec<FilterSpec> = match channel_params {
         None => vec![spec_from(name, dof, params)?; count],
         Some(list) => {
-            same_length("channel_params", list.len(), count)?;
+            if list.len() != count {
+                return Err(PyValueError::new_err(format!(
+                    "channel_params: has {} entries but there are {count} channels",
+                    list.len()
+                )));
+            }
             list.iter()
                 .map(|item| {
                     let merged = PyDict::new(py);
