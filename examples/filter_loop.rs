@@ -35,14 +35,19 @@ fn run<T: Lane>(spec: &FilterSpec, rec: &rootfuse::io::Recording) -> f64 {
         let s = rec.sample(i);
         let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
         let before = totals(&f);
-        f.update(&ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)), T::from_f64(rec.dt(i)));
+        f.update(
+            &ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
+            T::from_f64(rec.dt(i)),
+        );
         flags.push(totals(&f).flags_since(&before) | status_flags(&f, 0));
         let q = f.quat();
         quat.extend_from_slice(&[w(q.w), w(q.x), w(q.y), w(q.z)]);
         let b = f.bias();
         bias.extend_from_slice(&[w(b.x), w(b.y), w(b.z)]);
     }
-    quat.iter().sum::<f64>() + bias.iter().sum::<f64>() + flags.iter().map(|&x| f64::from(x)).sum::<f64>()
+    quat.iter().sum::<f64>()
+        + bias.iter().sum::<f64>()
+        + flags.iter().map(|&x| f64::from(x)).sum::<f64>()
 }
 
 fn main() -> Result<(), String> {
@@ -52,7 +57,11 @@ fn main() -> Result<(), String> {
     };
     let rec = rootfuse::io::read_csv(file).map_err(|e| e.to_string())?;
     let mut spec = FilterSpec::new(filter).map_err(|e| e.to_string())?;
-    let dof = dof.parse().ok().and_then(Dof::from_count).ok_or("DOF: 6 or 9")?;
+    let dof = dof
+        .parse()
+        .ok()
+        .and_then(Dof::from_count)
+        .ok_or("DOF: 6 or 9")?;
     spec.set_dof(dof).map_err(|e| e.to_string())?;
     let repeats: usize = repeats.parse().map_err(|_| "REPEATS: a whole number")?;
     let mut best = f64::INFINITY;

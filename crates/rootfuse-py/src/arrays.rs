@@ -59,7 +59,8 @@ pub fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<FloatAr
         let ro = a.try_readonly().map_err(|e| {
             PyValueError::new_err(format!("{name}: the array cannot be borrowed ({e})"))
         })?;
-        let data = if ro.as_slice().is_ok() {
+        // `as_slice` also accepts Fortran order, whose memory is not C order: check first.
+        let data = if a.is_c_contiguous() && ro.as_slice().is_ok() {
             Data::Borrowed(ro)
         } else {
             Data::Owned(ro.as_array().iter().copied().collect())

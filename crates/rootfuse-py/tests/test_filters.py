@@ -24,8 +24,10 @@ def sim_with_bad_samples(tmp_path, dof=9):
     rec = rf.simulate("fast-rotation", seed=3, duration_s=4.0, rate_hz=100.0)
     gyr, acc = rec["gyr"].copy(), rec["acc"].copy()
     mag = rec["mag"].copy() if rec["mag"] is not None else None
-    gyr[10, 1] = np.nan       # whole sample skipped: flag 2
-    acc[20, 0] = np.inf       # accelerometer correction skipped: flag 4
+    # The CSV reader refuses non-finite values, so the bad samples here are finite ones the
+    # filters skip (NaN/inf are covered in test_errors.py).
+    gyr[10, 1] = 1e6          # saturated gyroscope, whole sample skipped: flag 2
+    acc[20, :] = 0.0          # accelerometer correction skipped: flag 4
     if mag is not None:
         mag[30, :] = 0.0      # magnetometer correction skipped: flag 8
     path = tmp_path / "sim.csv"
