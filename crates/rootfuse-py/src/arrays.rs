@@ -187,10 +187,10 @@ impl Steps {
                 "dt, t: missing the sampling: give dt (s, scalar or shape (N,)) or t (s, shape (N,))",
             )),
             (Some(dt), None) => {
-                if let Ok(x) = dt.extract::<f64>() {
-                    if dt.cast::<numpy::PyUntypedArray>().is_err() {
-                        return Ok(Self::Fixed(positive(x, "dt")?));
-                    }
+                if let Ok(x) = dt.extract::<f64>()
+                    && dt.cast::<numpy::PyUntypedArray>().is_err()
+                {
+                    return Ok(Self::Fixed(positive(x, "dt")?));
                 }
                 let v = vector(dt, "dt")?;
                 same_length("dt", v.len(), n)?;

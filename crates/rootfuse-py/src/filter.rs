@@ -158,8 +158,10 @@ fn run_series<T: Lane>(filter: &mut AnyFilter<T>, input: &Inputs<'_>, with_cov: 
     out
 }
 
-/// The filter in its precision.
+/// The filter in its precision. One per Python object, updated in place, so the size of the
+/// larger variant costs nothing worth a box.
 #[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
 enum State {
     F32(AnyFilter<f32>),
     F64(AnyFilter<f64>),

@@ -317,12 +317,7 @@ pub fn run_many<'py>(
 fn squeeze<'py>(py: Python<'py>, d: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     for (k, v) in d.iter() {
-        let key: String = k.extract()?;
-        if key == "rejections" {
-            out.set_item(&key, v.get_item(0)?)?;
-        } else {
-            out.set_item(&key, v.get_item(0)?)?;
-        }
+        out.set_item(k, v.get_item(0)?)?;
     }
     Ok(out)
 }
