@@ -4,7 +4,7 @@
 use crate::common::same_bits;
 use rootfuse::batch::{
     Batch, Channel, ChannelOutput, Columns, Precision, RejectionTotals, flag, run_recordings,
-    run_recordings_with, state_bytes_per_channel, status_flags,
+    run_recordings_with, state_bytes_per_channel,
 };
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
@@ -26,14 +26,7 @@ fn scalar_run<S: Lane + Into<f64>>(spec: &FilterSpec, rec: &Recording) -> Channe
             .push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
         out.bias.push(Vec3::new(b.x.into(), b.y.into(), b.z.into()));
     }
-    let r = f.rejections();
-    out.rejections = RejectionTotals {
-        dt: r.dt.as_ref()[0],
-        gyr: r.gyr.as_ref()[0],
-        acc: r.acc.as_ref()[0],
-        mag: r.mag.as_ref()[0],
-        gated: r.gated.as_ref()[0],
-    };
+    out.rejections = RejectionTotals::of_lane(f.rejections(), 0);
     out
 }
 
@@ -186,14 +179,7 @@ fn masked_steps_are_invisible() {
                     .all(|(x, y)| same_bits(x, y)),
                 "{what}: {a:?} vs {b:?}"
             );
-            let r = f.rejections();
-            let expect = RejectionTotals {
-                dt: r.dt[0],
-                gyr: r.gyr[0],
-                acc: r.acc[0],
-                mag: r.mag[0],
-                gated: r.gated[0],
-            };
+            let expect = RejectionTotals::of_lane(f.rejections(), 0);
             assert_eq!(batch.rejections(c), expect, "{what}");
         }
     }
@@ -357,7 +343,11 @@ fn covariance_and_flags_equal_scalar_runs() {
                         | grew(&r.acc, &before.acc, flag::ACC)
                         | grew(&r.mag, &before.mag, flag::MAG)
                         | grew(&r.gated, &before.gated, flag::GATED)
-                        | status_flags(&f, 0);
+                        | grew(&r.mag_disturbed, &before.mag_disturbed, flag::MAG_DISTURBED)
+                        | f.rest_detected()
+                            .map_or(0, |rest| if rest { flag::REST } else { 0 });
+                    // The per-sample flags agree with the counters that grew.
+                    assert_eq!(f.flags().bits(0), expected, "{what}: flags() at {k}");
                     assert_eq!(o.flags[k], expected, "{what}: flags at {k}");
                     before = *r;
                     match f.attitude_covariance() {
@@ -396,8 +386,8 @@ fn covariance_and_flags_equal_scalar_runs() {
 }
 
 /// Channels with their own parameters (`Batch::with_channel_specs`): each equals a scalar run
-/// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, for a filter
-/// with gains in lanes (Mahony) and one with an `f64` parameter struct (the EKF).
+/// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, with 6D and
+/// 9D channels interleaved (two structural classes).
 #[test]
 fn per_channel_specs_equal_scalar_runs() {
     let recs = recordings(11);
@@ -415,38 +405,12 @@ fn per_channel_specs_equal_scalar_runs() {
                 s
             })
             .collect();
-        fn check<V: Lane>(specs: &[FilterSpec], recs: &[Recording], what: &str) {
-            let channels: Vec<(Vec<ImuSample<f64>>, Vec<f64>)> = recs
-                .iter()
-                .map(|r| {
-                    (
-                        (0..r.len()).map(|k| r.sample(k)).collect(),
-                        (0..r.len()).map(|k| r.dt(k)).collect(),
-                    )
-                })
-                .collect();
-            let input: Vec<Channel> = channels
-                .iter()
-                .map(|(s, d)| Channel { samples: s, dt: d })
-                .collect();
-            let mut batch = Batch::<V>::with_channel_specs(specs).unwrap();
-            batch.run_channels(&input);
-            for (c, (spec, rec)) in specs.iter().zip(recs).enumerate() {
-                let alone = scalar_run::<f32>(spec, rec);
-                let q = *alone.quat.last().unwrap();
-                let (a, b) = (batch.quat(c), q);
-                assert!(
-                    a.to_array()
-                        .into_iter()
-                        .zip(b.to_array())
-                        .all(|(x, y)| same_bits(x, y)),
-                    "{what} channel {c}: {a:?} vs {b:?}"
-                );
-                assert_eq!(batch.rejections(c), alone.rejections, "{what} channel {c}");
-            }
-        }
-        check::<rootfuse_lane::wide::f32x8>(&specs, &recs, &format!("{name} f32x8"));
-        check::<rootfuse_lane::X2<rootfuse_lane::wide::f32x8>>(
+        check_against_scalar_runs::<rootfuse_lane::wide::f32x8>(
+            &specs,
+            &recs,
+            &format!("{name} f32x8"),
+        );
+        check_against_scalar_runs::<rootfuse_lane::X2<rootfuse_lane::wide::f32x8>>(
             &specs,
             &recs,
             &format!("{name} X2<f32x8>"),
@@ -459,6 +423,82 @@ fn per_channel_specs_equal_scalar_runs() {
     ];
     let err = Batch::<f32, rootfuse_attitude::filters::Mahony<f32>>::with_channel_specs(&specs);
     assert_eq!(err.unwrap_err().channel, 1);
+}
+
+/// Runs `specs` (channel `c` over `recs[c]`) in a batch of lanes `V` and checks each channel
+/// against a scalar `f32` run of its own spec, bit for bit. Returns the batch's chunk count.
+fn check_against_scalar_runs<V: Lane>(
+    specs: &[FilterSpec],
+    recs: &[Recording],
+    what: &str,
+) -> usize {
+    let channels: Vec<(Vec<ImuSample<f64>>, Vec<f64>)> = recs
+        .iter()
+        .map(|r| {
+            (
+                (0..r.len()).map(|k| r.sample(k)).collect(),
+                (0..r.len()).map(|k| r.dt(k)).collect(),
+            )
+        })
+        .collect();
+    let input: Vec<Channel> = channels
+        .iter()
+        .map(|(s, d)| Channel { samples: s, dt: d })
+        .collect();
+    let mut batch = Batch::<V>::with_channel_specs(specs).unwrap();
+    batch.run_channels(&input);
+    for (c, (spec, rec)) in specs.iter().zip(recs).enumerate() {
+        let alone = scalar_run::<f32>(spec, rec);
+        let q = *alone.quat.last().unwrap();
+        let (a, b) = (batch.quat(c), q);
+        assert!(
+            a.to_array()
+                .into_iter()
+                .zip(b.to_array())
+                .all(|(x, y)| same_bits(x, y)),
+            "{what} channel {c}: {a:?} vs {b:?}"
+        );
+        assert_eq!(batch.rejections(c), alone.rejections, "{what} channel {c}");
+    }
+    batch.chunks().len()
+}
+
+/// Per-lane parameters: eight channels whose specs differ in every parameter that may vary
+/// per lane run in ONE `f32x8` chunk (four `f64x4`-wide halves of the interleaved type), and
+/// each equals the scalar run of its own spec bit for bit — for every registered filter, 6D
+/// and 9D.
+#[test]
+fn per_lane_parameters_equal_scalar_runs_for_every_filter() {
+    let recs = recordings(8);
+    for &kind in FilterKind::ALL {
+        for dof in [6u8, 9] {
+            let specs: Vec<FilterSpec> = (0..8)
+                .map(|c| {
+                    let mut s = FilterSpec::new(kind.name()).unwrap();
+                    s.set_dof(crate::common::dof(dof)).unwrap();
+                    for info in kind.params().iter().filter(|i| i.per_lane) {
+                        let step = (c + 1) as f64;
+                        let v = if info.default == 0.0 {
+                            (1e-3 * step).min(info.max)
+                        } else {
+                            (info.default * (1.0 + 0.07 * step)).clamp(info.min, info.max)
+                        };
+                        s.set(&format!("{}={v}", info.name)).unwrap();
+                    }
+                    s
+                })
+                .collect();
+            assert!(
+                specs
+                    .windows(2)
+                    .all(|w| w[0] != w[1] || kind.params().iter().all(|i| !i.per_lane))
+            );
+            let what = format!("{} {dof}D", kind.name());
+            let chunks =
+                check_against_scalar_runs::<rootfuse_lane::wide::f32x8>(&specs, &recs, &what);
+            assert_eq!(chunks, 1, "{what}: all eight channels share one chunk");
+        }
+    }
 }
 
 /// The interleaved lane types (`X2`), which the engine uses for small filters, equal scalar

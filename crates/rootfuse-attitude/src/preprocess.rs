@@ -117,13 +117,13 @@ pub struct LowPass<T: Lane> {
 impl<T: Lane> LowPass<T> {
     /// A low-pass with smoothing factor `a` (1 = pass-through); `a` is clamped to `(0, 1]`.
     pub fn new(a: f64) -> Self {
-        let a = if a > 0.0 {
-            a.min(1.0)
-        } else {
-            f64::MIN_POSITIVE
-        };
+        Self::with_factor(T::from_f64(low_pass_factor(a)))
+    }
+    /// A low-pass whose factor is already in lanes (per-lane factors; each one as
+    /// [`low_pass_factor`] makes it).
+    pub fn with_factor(a: T) -> Self {
         Self {
-            a: T::from_f64(a),
+            a,
             y: T::zero(),
             hold: Hold::new(),
         }
@@ -249,9 +249,14 @@ pub struct Hampel<T: Lane, const W: usize> {
 impl<T: Lane, const W: usize> Hampel<T, W> {
     /// A Hampel filter of odd window `W` and threshold `k` (standard deviations; 3 is usual).
     pub fn new(k: f64) -> Self {
+        Self::with_threshold(T::from_f64(hampel_threshold(k)))
+    }
+    /// A Hampel filter whose threshold `k·1.4826` is already in lanes (per-lane thresholds;
+    /// each one as [`hampel_threshold`] makes it).
+    pub fn with_threshold(k_mad: T) -> Self {
         const { assert!(W % 2 == 1, "the Hampel window is 2N + 1 samples") };
         Self {
-            k: T::from_f64(k * 1.4826),
+            k: k_mad,
             window: Window::new(),
             replaced: T::Counts::default(),
         }
@@ -279,4 +284,20 @@ impl<T: Lane, const W: usize> Hampel<T, W> {
     pub fn replaced(&self) -> &T::Counts {
         &self.replaced
     }
+}
+
+/// The factor a [`LowPass`] uses for a requested `a`: clamped to `(0, 1]` (a non-positive or
+/// NaN `a` becomes the smallest positive value, which holds the first input).
+pub fn low_pass_factor(a: f64) -> f64 {
+    if a > 0.0 {
+        a.min(1.0)
+    } else {
+        f64::MIN_POSITIVE
+    }
+}
+
+/// The threshold a [`Hampel`] filter compares with the median absolute deviation: `k·1.4826`
+/// (1.4826·MAD estimates the standard deviation of Gaussian data).
+pub fn hampel_threshold(k: f64) -> f64 {
+    k * 1.4826
 }

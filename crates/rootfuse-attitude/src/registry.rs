@@ -141,6 +141,16 @@ macro_rules! registry {
             fn rejections(&self) -> &Rejections<T> {
                 match self { $(Self::$variant(f) => f.rejections(),)* }
             }
+            fn set_quat(&mut self, q: Quat<T>) {
+                match self { $(Self::$variant(f) => f.set_quat(q),)* }
+            }
+            fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+                match self { $(Self::$variant(f) => f.set_bias(bias),)* }
+            }
+            #[inline]
+            fn flags(&self) -> SampleFlags<T> {
+                match self { $(Self::$variant(f) => f.flags(),)* }
+            }
             #[inline]
             fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
                 match self { $(Self::$variant(f) => OrientationFilter::attitude_covariance(f),)* }
@@ -159,6 +169,13 @@ macro_rules! registry {
             fn from_spec(spec: &FilterSpec) -> Option<Self> {
                 Some(spec.build())
             }
+            fn from_lane_specs(specs: &[&FilterSpec]) -> Option<Self> {
+                match specs.first()?.kind {
+                    $(FilterKind::$variant => {
+                        <$filter<T> as FromSpec<T>>::from_lane_specs(specs).map(Self::$variant)
+                    })*
+                }
+            }
         }
 
         $(
@@ -169,6 +186,18 @@ macro_rules! registry {
                         #[allow(unreachable_patterns)]
                         _ => None,
                     }
+                }
+                fn from_lane_specs(specs: &[&FilterSpec]) -> Option<Self> {
+                    let first = specs.first()?;
+                    let sets = specs
+                        .iter()
+                        .map(|s| match &s.params {
+                            AnyParams::$variant(p) if s.same_structure(first) => Some(p.clone()),
+                            #[allow(unreachable_patterns)]
+                            _ => None,
+                        })
+                        .collect::<Option<std::vec::Vec<$params>>>()?;
+                    Some($filter::with_lane_params(&LaneParams::per_lane(&sets)?))
                 }
             }
         )*
@@ -189,6 +218,11 @@ pub trait FromSpec<T: Lane>: Sized {
     /// A fresh filter with the spec's parameters, or `None` when the spec is of another
     /// filter (always `Some` for [`AnyFilter`]).
     fn from_spec(spec: &FilterSpec) -> Option<Self>;
+    /// A fresh filter whose lane `i` has the parameters of `specs[i % specs.len()]`; `None`
+    /// when `specs` is empty, a spec is of another filter, or the specs differ in a parameter
+    /// that cannot vary per lane ([`FilterSpec::same_structure`]). Lane `i` then computes
+    /// exactly what a scalar filter built from `specs[i]` computes.
+    fn from_lane_specs(specs: &[&FilterSpec]) -> Option<Self>;
 }
 
 /// The bounds every registered filter type meets, as [`FilterVisitor::visit`] hands it over.
@@ -276,6 +310,19 @@ impl FilterSpec {
     /// batch engine and the tests (`gyro`: false).
     pub fn uses_magnetometer(&self) -> bool {
         self.dof().is_some_and(Dof::uses_magnetometer)
+    }
+    /// True when `other` is the same filter and agrees with this spec on every parameter
+    /// that cannot differ between the lanes of one SIMD chunk ([`ParamInfo::per_lane`]
+    /// false: `dof`, switches, whole numbers, screening limits, `shared` ones): the two can
+    /// then run in lanes of one chunk, each with its own per-lane parameters.
+    pub fn same_structure(&self, other: &FilterSpec) -> bool {
+        self.kind == other.kind
+            && self
+                .kind
+                .params()
+                .iter()
+                .filter(|info| !info.per_lane)
+                .all(|info| self.get(info.name) == other.get(info.name))
     }
     /// The input-screening limits (`max_dt`, `max_gyr`) these parameters give the filter.
     pub fn screen_limits(&self) -> ScreenLimits {

@@ -35,6 +35,22 @@ pub struct RejectionTotals {
     pub mag: u64,
     /// Corrections skipped by the filter's own gate.
     pub gated: u64,
+    /// Magnetometer samples rejected as a disturbed field.
+    pub mag_disturbed: u64,
+}
+
+impl RejectionTotals {
+    /// The counters of one lane of a filter's [`Rejections`](rootfuse_attitude::filters::Rejections).
+    pub fn of_lane<T: Lane>(r: &rootfuse_attitude::filters::Rejections<T>, lane: usize) -> Self {
+        Self {
+            dt: r.dt.as_ref()[lane],
+            gyr: r.gyr.as_ref()[lane],
+            acc: r.acc.as_ref()[lane],
+            mag: r.mag.as_ref()[lane],
+            gated: r.gated.as_ref()[lane],
+            mag_disturbed: r.mag_disturbed.as_ref()[lane],
+        }
+    }
 }
 
 /// One channel's input, sample by sample, in `f64` (converted to the lane's precision by
@@ -215,14 +231,9 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
 
     /// Rejection counters of lane `lane`, masked steps excluded.
     pub fn rejections(&self, lane: usize) -> RejectionTotals {
-        let r = self.filter.rejections();
-        RejectionTotals {
-            dt: r.dt.as_ref()[lane].saturating_sub(self.masked.as_ref()[lane]),
-            gyr: r.gyr.as_ref()[lane],
-            acc: r.acc.as_ref()[lane],
-            mag: r.mag.as_ref()[lane],
-            gated: r.gated.as_ref()[lane],
-        }
+        let mut totals = RejectionTotals::of_lane(self.filter.rejections(), lane);
+        totals.dt = totals.dt.saturating_sub(self.masked.as_ref()[lane]);
+        totals
     }
 
     /// Runs steps `steps` of the channels `sources` (at most `LANES`, one per used lane; a
@@ -363,16 +374,12 @@ impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
     /// noise levels); an error if `F` cannot build one of them (with [`AnyFilter`] any
     /// registered filter can, even mixed).
     ///
-    /// Channels with equal specs share chunks, in order of first appearance; a chunk's lanes
-    /// all hold one spec, so its filter is built exactly like the scalar one and each
-    /// channel's result equals a scalar run with its own spec, bit for bit. Each distinct spec
-    /// costs at most one partly filled chunk (its tail lanes run padding). Use
-    /// [`chunk_channels`](Self::chunk_channels) to pack struct-of-arrays input.
-    ///
-    /// Why chunks of equal specs rather than parameters in lanes: several filters keep their
-    /// parameters as one `f64` struct shared by the lanes (the flagship's `SqrtEskfParams`,
-    /// converted per update), so per-lane values would need those filters to hold them as
-    /// lanes; grouping gives the same results for every registered filter now.
+    /// Parameters live in lanes: channels whose specs agree on the structural parameters
+    /// ([`FilterSpec::same_structure`](rootfuse_attitude::registry::FilterSpec::same_structure): `dof`, switches, window lengths, screening limits)
+    /// share chunks in order of first appearance, each lane with its own real-valued
+    /// parameters, and each channel's result equals a scalar run with its own spec, bit for
+    /// bit. Each structural class costs at most one partly filled chunk (its tail lanes run
+    /// padding). Use [`chunk_channels`](Self::chunk_channels) to pack struct-of-arrays input.
     ///
     /// ```
     /// use rootfuse_attitude::registry::FilterSpec;
@@ -391,8 +398,7 @@ impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
     ///     })
     ///     .collect();
     /// let mut batch = Batch::<f32x8>::with_channel_specs(&specs).unwrap();
-    /// assert_eq!(batch.chunk_channels(0), [0, 2]); // kp = 0.5
-    /// assert_eq!(batch.chunk_channels(1), [1]); // kp = 2.0
+    /// assert_eq!(batch.chunk_channels(0), [0, 1, 2]); // gains in lanes: one chunk
     /// let tilted = vec![ImuSample::six_d(Vec3::zero(), Vec3::new(0.0, 3.0, 9.3)); 50];
     /// let dt = vec![0.01; 50];
     /// let channels: Vec<Channel> = (0..3).map(|_| Channel { samples: &tilted, dt: &dt }).collect();
@@ -400,30 +406,31 @@ impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
     /// assert_eq!(batch.quat(0), batch.quat(2));
     /// ```
     pub fn with_channel_specs(specs: &[FilterSpec]) -> Result<Self, SpecMismatch> {
-        // Distinct specs in order of first appearance, and each channel's group.
-        let mut distinct: Vec<&FilterSpec> = Vec::new();
-        let mut group = Vec::with_capacity(specs.len());
+        // Structural classes in order of first appearance, and each channel's class.
+        let mut classes: Vec<&FilterSpec> = Vec::new();
+        let mut class = Vec::with_capacity(specs.len());
         for spec in specs {
-            let g = match distinct.iter().position(|d| *d == spec) {
+            let g = match classes.iter().position(|d| d.same_structure(spec)) {
                 Some(g) => g,
                 None => {
-                    distinct.push(spec);
-                    distinct.len() - 1
+                    classes.push(spec);
+                    classes.len() - 1
                 }
             };
-            group.push(g);
+            class.push(g);
         }
         let mut chunks = Vec::new();
         let mut slot = vec![0; specs.len()];
-        for (g, spec) in distinct.iter().enumerate() {
-            let members: Vec<usize> = (0..specs.len()).filter(|&c| group[c] == g).collect();
-            let first = members[0];
-            let filter = F::from_spec(spec).ok_or(SpecMismatch { channel: first })?;
+        for g in 0..classes.len() {
+            let members: Vec<usize> = (0..specs.len()).filter(|&c| class[c] == g).collect();
             for lanes in members.chunks(L::LANES) {
+                let lane_specs: Vec<&FilterSpec> = lanes.iter().map(|&c| &specs[c]).collect();
+                let filter =
+                    F::from_lane_specs(&lane_specs).ok_or(SpecMismatch { channel: lanes[0] })?;
                 for (lane, &c) in lanes.iter().enumerate() {
                     slot[c] = chunks.len() * L::LANES + lane;
                 }
-                chunks.push(Chunk::new(filter.clone(), lanes.len()));
+                chunks.push(Chunk::new(filter, lanes.len()));
             }
         }
         Ok(Self {

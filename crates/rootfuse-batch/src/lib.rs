@@ -143,7 +143,7 @@ pub use batch::{
 };
 pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
-    run_sources_with, status_flags,
+    run_sources_with,
 };
 #[cfg(feature = "throughput")]
 pub use throughput::{

@@ -3,7 +3,7 @@
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-use rootfuse_attitude::{Lane, Mask, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_attitude::{Lane, Quat, Recording, Vec3};
 use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// Arithmetic precision of a batch run.
@@ -38,51 +38,26 @@ impl Default for Columns {
     }
 }
 
-/// Bits of [`ChannelOutput::flags`]: which counter of [`RejectionTotals`] the sample raised
-/// (1–16), and the filter's detector states after the sample (32, 64; filters that have them,
-/// see [`OrientationFilter::rest_detected`](rootfuse_attitude::OrientationFilter::rest_detected)).
+/// Bits of [`ChannelOutput::flags`], as
+/// [`SampleFlags::bits`](rootfuse_attitude::filters::SampleFlags::bits) reports them: what
+/// happened to the sample (1–16, 64) and the rest detector's state after it (32).
 pub mod flag {
+    use rootfuse_attitude::filters::SampleFlags;
     /// The whole sample was skipped: `dt` unusable.
-    pub const DT: u8 = 1;
+    pub const DT: u8 = SampleFlags::<f32>::DT;
     /// The whole sample was skipped: gyroscope unusable.
-    pub const GYR: u8 = 2;
+    pub const GYR: u8 = SampleFlags::<f32>::GYR;
     /// The accelerometer correction was skipped: not finite or zero.
-    pub const ACC: u8 = 4;
+    pub const ACC: u8 = SampleFlags::<f32>::ACC;
     /// The magnetometer correction was skipped (9D): absent, not finite or zero.
-    pub const MAG: u8 = 8;
-    /// A correction was skipped by the filter's own gate.
-    pub const GATED: u8 = 16;
+    pub const MAG: u8 = SampleFlags::<f32>::MAG;
+    /// A correction was refused by the filter's own gate (acceleration norm, innovation).
+    pub const GATED: u8 = SampleFlags::<f32>::ACC_GATED;
     /// Status, not a skip: the filter detects the sensor at rest (gyro bias learned).
-    pub const REST: u8 = 32;
-    /// Status: the magnetometer sample was rejected as a disturbed field (also counted as
-    /// [`GATED`]).
-    pub const MAG_DISTURBED: u8 = 64;
-}
-
-/// The status bits ([`flag::REST`], [`flag::MAG_DISTURBED`]) of `filter` in `lane`.
-pub fn status_flags<L: Lane, F: OrientationFilter<L>>(filter: &F, lane: usize) -> u8 {
-    let bit = |m: Option<L::Mask>, b: u8| match m {
-        Some(m) if (m.bitmask() >> lane) & 1 == 1 => b,
-        _ => 0,
-    };
-    bit(filter.rest_detected(), flag::REST)
-        | bit(filter.magnetic_disturbance(), flag::MAG_DISTURBED)
-}
-
-impl RejectionTotals {
-    /// The [`flag`] bits of the counters that grew since `earlier`.
-    pub fn flags_since(&self, earlier: &RejectionTotals) -> u8 {
-        [
-            (self.dt, earlier.dt, flag::DT),
-            (self.gyr, earlier.gyr, flag::GYR),
-            (self.acc, earlier.acc, flag::ACC),
-            (self.mag, earlier.mag, flag::MAG),
-            (self.gated, earlier.gated, flag::GATED),
-        ]
-        .iter()
-        .filter(|(now, then, _)| now > then)
-        .fold(0, |bits, (_, _, bit)| bits | bit)
-    }
+    pub const REST: u8 = SampleFlags::<f32>::AT_REST;
+    /// The magnetometer sample was rejected as a disturbed field (counted apart from
+    /// [`GATED`], in `RejectionTotals::mag_disturbed`).
+    pub const MAG_DISTURBED: u8 = SampleFlags::<f32>::MAG_DISTURBED;
 }
 
 /// The estimates of one channel at every one of its samples, in `f64`.
@@ -228,7 +203,6 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
         )
         .for_each(|(chunk, (srcs, outs))| {
             let steps = srcs.iter().map(|s| s.len()).max().unwrap_or(0);
-            let mut counted = vec![RejectionTotals::default(); outs.len()];
             chunk.run_sources(srcs, 0..steps, |_, chunk, active| {
                 let filter = chunk.filter();
                 let (q, b) = (filter.quat(), filter.bias());
@@ -237,6 +211,7 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
                 } else {
                     None
                 };
+                let flags = columns.flags.then(|| filter.flags());
                 for (i, o) in outs.iter_mut().enumerate() {
                     if (active >> i) & 1 == 0 {
                         continue;
@@ -259,11 +234,8 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
                             at(2, 2),
                         ]);
                     }
-                    if columns.flags {
-                        let now = chunk.rejections(i);
-                        o.flags
-                            .push(now.flags_since(&counted[i]) | status_flags(filter, i));
-                        counted[i] = now;
+                    if let Some(f) = &flags {
+                        o.flags.push(f.bits(i));
                     }
                 }
             });

@@ -137,7 +137,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
-    let mut totals = [0u64; 5];
+    let mut totals = [0u64; 6];
     let mut samples = 0usize;
     for (rec, out) in recs.iter().zip(&outputs) {
         let path = args.out.join(format!("{}.csv", rec.name));
@@ -148,7 +148,10 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             .collect();
         write_estimates(&path, &rec.t, &out.quat, &extra).map_err(|e| e.to_string())?;
         let r = out.rejections;
-        for (t, v) in totals.iter_mut().zip([r.dt, r.gyr, r.acc, r.mag, r.gated]) {
+        for (t, v) in totals
+            .iter_mut()
+            .zip([r.dt, r.gyr, r.acc, r.mag, r.gated, r.mag_disturbed])
+        {
             *t += v;
         }
         samples += rec.len();
@@ -165,12 +168,13 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         args.out.display()
     );
     out!(
-        "rejected: dt {}, gyro {}, accelerometer {}, magnetometer {}, gated {}",
+        "rejected: dt {}, gyro {}, accelerometer {}, magnetometer {}, gated {}, magnetic disturbance {}",
         totals[0],
         totals[1],
         totals[2],
         totals[3],
-        totals[4]
+        totals[4],
+        totals[5]
     );
     if failed > 0 {
         eprintln!("{failed} file(s) failed");
@@ -191,13 +195,7 @@ fn smooth_recordings(spec: &FilterSpec, recs: &[Recording]) -> Result<Vec<Channe
             let r = &smoothed.rejections;
             Ok(ChannelOutput {
                 quat: smoothed.quat,
-                rejections: RejectionTotals {
-                    dt: r.dt.as_ref()[0],
-                    gyr: r.gyr.as_ref()[0],
-                    acc: r.acc.as_ref()[0],
-                    mag: r.mag.as_ref()[0],
-                    gated: r.gated.as_ref()[0],
-                },
+                rejections: RejectionTotals::of_lane(r, 0),
                 ..ChannelOutput::default()
             })
         })

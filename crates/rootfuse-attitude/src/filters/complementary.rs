@@ -89,6 +89,10 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
 
         self.q = Quat::select(s.step, q, self.q);
     }
+    fn set_quat(&mut self, q: Quat<T>) {
+        self.q = q.normalize();
+        self.initialized = <T::Mask as Mask>::splat(true);
+    }
     fn quat(&self) -> Quat<T> {
         self.q
     }

@@ -1,5 +1,6 @@
 //! Complementary reconstruction (patent CN104101345B) [`complementary-reconstruction`].
 
+use super::LaneParams;
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{acc_mag_quat, coning_rotation_vector};
@@ -19,7 +20,7 @@ params! {
         /// specific force.
         alpha_rule: u32 = 1.0, "1", [0.0, 1.0];
         /// A fixed blend weight α of the gyro quaternion in `[0, 1]`; negative: adaptive α.
-        alpha_fixed: f64 = -1.0, "1", [-1.0, 1.0];
+        alpha_fixed: f64 = -1.0, "1", [-1.0, 1.0], shared;
         /// 1: subtract the still-period mean of ax and ay from the accelerometer (the source's
         /// offset correction, valid only if the carrier is level then); 0: do not.
         acc_offsets: bool = 0.0, "1", [0.0, 1.0];
@@ -213,6 +214,12 @@ fn vmin<T: Lane>(a: Vec3<T>, b: Vec3<T>) -> Vec3<T> {
 impl<T: Lane> ComplementaryReconstruction<T> {
     /// A filter with the given parameters.
     pub fn new(p: &ComplementaryReconstructionParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, ComplementaryReconstructionParams>) -> Self {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(false),
@@ -220,15 +227,15 @@ impl<T: Lane> ComplementaryReconstruction<T> {
             has_prev: <T::Mask as Mask>::splat(false),
             alpha: T::zero(),
             still: Still::new(),
-            still_s: T::from_f64(p.still_s),
-            coning: p.coning,
-            literal: p.alpha_rule == 0,
-            alpha_fixed: (p.alpha_fixed >= 0.0).then(|| T::from_f64(p.alpha_fixed)),
-            acc_offsets: p.acc_offsets,
-            min_rate: T::from_f64(p.min_static_rate),
-            min_acc: T::from_f64(p.min_static_acc),
-            nine_d: p.dof.uses_magnetometer(),
-            limits: p.screen_limits(),
+            still_s: p.coef(|p| p.still_s),
+            coning: p.first().coning,
+            literal: p.first().alpha_rule == 0,
+            alpha_fixed: (p.first().alpha_fixed >= 0.0).then(|| p.coef(|p| p.alpha_fixed)),
+            acc_offsets: p.first().acc_offsets,
+            min_rate: p.coef(|p| p.min_static_rate),
+            min_acc: p.coef(|p| p.min_static_acc),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }
@@ -322,6 +329,10 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
         self.alpha = T::select(s.step, T::select(obs_ok, alpha, T::one()), self.alpha);
         self.prev_gyr = Vec3::select(s.step, s.gyr, self.prev_gyr);
         self.has_prev |= s.step;
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        self.q = q.normalize();
+        self.initialized = <T::Mask as Mask>::splat(true);
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -198,13 +198,23 @@ impl<T: Lane> OrientationFilter<T> for EcfEkf<T> {
         }
         let r = Mat::<T, 4, 4>::identity().scale(self.obs_var);
         let (x, accept) = x.update(&h, &Mat::from_column(y), &r, s.step);
-        T::count(&mut self.rejections.gated, s.step & !accept);
+        self.rejections.gate(s.step & !accept);
 
         self.ecf_q = Quat::select(s.step, ecf_q, self.ecf_q);
         self.integral = Vec3::select(s.step, integral, self.integral);
         self.x.q = Quat::select(s.step, x.q, self.x.q);
         self.x.bias = Vec3::select(s.step, x.bias, self.x.bias);
         self.x.p = Mat::select(s.step, &x.p, &self.x.p);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        let q = q.normalize();
+        self.x.q = q;
+        self.ecf_q = q;
+        self.initialized = <T::Mask as Mask>::splat(true);
+    }
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.x.bias = bias;
+        true
     }
     fn quat(&self) -> Quat<T> {
         self.x.q

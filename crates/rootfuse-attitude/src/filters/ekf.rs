@@ -128,7 +128,7 @@ impl<T: Lane> Ekf<T> {
             p: self.p,
         };
         let (next, accept) = state.update(&h, &y, &r, apply);
-        T::count(&mut self.rejections.gated, apply & !accept);
+        self.rejections.gate(apply & !accept);
         (self.q, self.bias, self.p) = (next.q, next.bias, next.p);
         accept
     }
@@ -150,7 +150,7 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
 
         // Corrections.
         let acc_in_gate = (s.acc_norm - self.gravity).abs().simd_le(self.acc_gate);
-        T::count(&mut self.rejections.gated, s.acc_ok & !acc_in_gate);
+        self.rejections.gate(s.acc_ok & !acc_in_gate);
         self.correct(up(), s.acc, self.acc_var, s.acc_ok & acc_in_gate);
         // 6D is the same for every lane and discards this update: skipping it changes no bits.
         if self.nine_d {
@@ -161,6 +161,14 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
         self.q = Quat::select(s.step, self.q, q_prev);
         self.bias = Vec3::select(s.step, self.bias, b_prev);
         self.p = Mat::select(s.step, &self.p, &p_prev);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        self.q = q.normalize();
+        self.initialized = <T::Mask as Mask>::splat(true);
+    }
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.bias = bias;
+        true
     }
     fn quat(&self) -> Quat<T> {
         self.q

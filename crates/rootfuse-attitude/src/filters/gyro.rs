@@ -1,5 +1,6 @@
 //! Gyro-only integration [`gyro`].
 
+use super::LaneParams;
 use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::{ImuSample, Quat, blocks::integrate_gyro};
 use rootfuse_lane::{Lane, Mask};
@@ -25,10 +26,16 @@ pub struct GyroIntegration<T: Lane> {
 impl<T: Lane> GyroIntegration<T> {
     /// A filter with the given parameters, at the identity until initialised.
     pub fn new(params: &GyroParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(params))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(params: &LaneParams<'_, GyroParams>) -> Self {
         Self {
             q: Quat::identity(),
-            initialized: <T::Mask as Mask>::splat(!params.init_from_acc),
-            limits: params.screen_limits(),
+            initialized: <T::Mask as Mask>::splat(!params.first().init_from_acc),
+            limits: params.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }
@@ -39,6 +46,10 @@ impl<T: Lane> OrientationFilter<T> for GyroIntegration<T> {
         let s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
         let q = initialise(self.q, &mut self.initialized, &s, false);
         self.q = Quat::select(s.step, integrate_gyro(q, s.gyr, s.dt), self.q);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        self.q = q.normalize();
+        self.initialized = <T::Mask as Mask>::splat(true);
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -1,9 +1,10 @@
 //! A patent's MEMS heading pipeline (S1–S3) as a full-attitude filter [`heading-pipeline`].
 
+use super::LaneParams;
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{integrate_gyro, true_heading_error};
-use crate::preprocess::{LowPass, MovingMean, MovingMedian};
+use crate::preprocess::{LowPass, MovingMean, MovingMedian, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -45,9 +46,9 @@ struct Chain<T: Lane> {
 }
 
 impl<T: Lane> Chain<T> {
-    fn new(a: f64) -> Self {
+    fn new(a: T) -> Self {
         Self {
-            low_pass: LowPass::new(a),
+            low_pass: LowPass::with_factor(a),
             mean: MovingMean::new(),
             median: MovingMedian::new(),
         }
@@ -66,7 +67,7 @@ impl<T: Lane> Chain<T> {
 struct VecChain<T: Lane>([Chain<T>; 3]);
 
 impl<T: Lane> VecChain<T> {
-    fn new(a: f64) -> Self {
+    fn new(a: T) -> Self {
         Self([Chain::new(a), Chain::new(a), Chain::new(a)])
     }
     fn update(&mut self, v: Vec3<T>, ok: T::Mask, active: T::Mask) -> Vec3<T> {
@@ -145,10 +146,16 @@ pub struct HeadingPipeline<T: Lane> {
 impl<T: Lane> HeadingPipeline<T> {
     /// A filter with the given parameters.
     pub fn new(p: &HeadingPipelineParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
+    pub fn with_lane_params(p: &LaneParams<'_, HeadingPipelineParams>) -> Self {
         let p0 = [
             T::from_f64(core::f64::consts::PI * core::f64::consts::PI),
             T::zero(),
-            T::from_f64(p.bias_std0 * p.bias_std0),
+            p.coef(|p| p.bias_std0 * p.bias_std0),
         ];
         Self {
             q: Quat::identity(),
@@ -158,18 +165,18 @@ impl<T: Lane> HeadingPipeline<T> {
             p: p0,
             psi_mems: T::zero(),
             initialized: <T::Mask as Mask>::splat(false),
-            acc_chain: VecChain::new(p.lp_alpha),
-            mag_chain: VecChain::new(p.lp_alpha),
-            tau_acc: T::from_f64(p.tau_acc),
-            q_heading: T::from_f64(p.q_heading),
-            q_bias: T::from_f64(p.q_bias),
-            r_mag: T::from_f64(p.r_mag),
-            bias_gate: T::from_f64(p.bias_gate),
+            acc_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
+            mag_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
+            tau_acc: p.coef(|p| p.tau_acc),
+            q_heading: p.coef(|p| p.q_heading),
+            q_bias: p.coef(|p| p.q_bias),
+            r_mag: p.coef(|p| p.r_mag),
+            bias_gate: p.coef(|p| p.bias_gate),
             p0,
-            coeff: T::from_f64(p.coeff),
-            declination: T::from_f64(p.declination),
-            nine_d: p.dof.uses_magnetometer(),
-            limits: p.screen_limits(),
+            coeff: p.coef(|p| p.coeff),
+            declination: p.coef(|p| p.declination),
+            nine_d: p.first().dof.uses_magnetometer(),
+            limits: p.first().screen_limits(),
             rejections: Rejections::default(),
         }
     }
@@ -243,7 +250,7 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
             psi = T::select(ok, (psi + k0 * nu).wrap_pi(), psi);
             b = T::select(ok & settled, b + k1 * nu, b);
             pn = [0, 1, 2].map(|i| T::select(ok, upd[i], pn[i]));
-            T::count(&mut self.rejections.gated, s.mag_ok & !h_ok);
+            self.rejections.reject_field(s.mag_ok & !h_ok);
         }
 
         let psi_gyro = (psi_mems + dpsi_gyro - b * t).wrap_pi();
@@ -258,6 +265,15 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
         self.bias = T::select(step, b, bias);
         self.p = [0, 1, 2].map(|i| T::select(step, pn[i], p[i]));
         self.psi_mems = T::select(step, mems, psi_mems);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        let q = q.normalize();
+        let (heading, incl) = q.heading_inclination();
+        self.q = q;
+        self.incl = incl;
+        self.psi_kf = heading;
+        self.psi_mems = heading;
+        self.initialized = <T::Mask as Mask>::splat(true);
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -96,6 +96,14 @@ impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
         self.q = Quat::select(s.step, q_new, self.q);
         self.bias = Vec3::select(s.step, bias, self.bias);
     }
+    fn set_quat(&mut self, q: Quat<T>) {
+        self.q = q.normalize();
+        self.initialized = <T::Mask as Mask>::splat(true);
+    }
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.bias = bias;
+        true
+    }
     fn quat(&self) -> Quat<T> {
         self.q
     }

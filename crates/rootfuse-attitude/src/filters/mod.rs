@@ -61,7 +61,7 @@ pub use params::{Dof, LaneParams, ParamInfo, ParamKind, ParamValue};
 #[cfg(feature = "std")]
 pub use params::{ParamError, Params};
 pub(crate) use params::{params, params_with_screening};
-pub use screen::{Rejections, ScreenLimits, Screened};
+pub use screen::{Rejections, SampleFlags, ScreenLimits, Screened};
 pub use sqrt_eskf::{SqrtEskf, SqrtEskfParams};
 
 use crate::{ImuSample, Quat, Vec3};
@@ -97,6 +97,33 @@ pub trait OrientationFilter<T: Lane> {
     /// with magnetic-disturbance detection (`None` otherwise).
     fn magnetic_disturbance(&self) -> Option<T::Mask> {
         None
+    }
+    /// What happened to the last sample, per lane ([`SampleFlags::bits`] gives the `flags`
+    /// column): skips by reason, gating, magnetic disturbance, rest.
+    fn flags(&self) -> SampleFlags<T> {
+        let mut f = self.rejections().last;
+        if let Some(rest) = self.rest_detected() {
+            f.at_rest = rest;
+        }
+        f
+    }
+    /// Sets the orientation (sensor to earth, ENU; normalised here) in every lane and marks
+    /// the filter initialised, so the next samples correct from there instead of starting
+    /// over from the accelerometer. Filters that learn more state (bias, covariance) keep it.
+    fn set_quat(&mut self, q: Quat<T>);
+    /// Sets the gyro-bias estimate, rad/s (sensor frame); `false` (and nothing changed) for
+    /// filters without one.
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        let _ = bias;
+        false
+    }
+    /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
+    /// from north, see [`Quat::heading_inclination`]) becomes `heading`; the inclination is
+    /// kept.
+    fn set_heading(&mut self, heading: T) {
+        let q = self.quat();
+        let (current, _) = q.heading_inclination();
+        self.set_quat(Quat::from_heading(heading - current) * q);
     }
 }
 

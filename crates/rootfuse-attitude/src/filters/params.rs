@@ -197,6 +197,10 @@ pub struct ParamInfo {
     pub name: &'static str,
     /// What values it takes (real, whole number, switch, 6/9).
     pub kind: ParamKind,
+    /// The value may differ between the lanes of one SIMD chunk ([`LaneParams`]); the others
+    /// (structural: `dof`, switches, whole numbers, screening limits, and real parameters that
+    /// shape an internal estimator) must be equal for channels to share a chunk.
+    pub per_lane: bool,
     /// Default value.
     pub default: f64,
     /// Unit (`"rad/s"`, `"s"`, `"1"` for dimensionless, …).
@@ -317,26 +321,27 @@ pub trait Params: Clone + Default + fmt::Debug {
 }
 
 /// Declares a parameter struct: each field has a type ([`ParamValue`]: `f64`, `u32`, `bool`
-/// or [`Dof`]), a default written as a number, a unit, a range and a doc. Every struct also
+/// or [`Dof`]), a default written as a number, a unit, a range, a doc, and optionally the
+/// marker `shared` for a real parameter that cannot differ between lanes of one chunk. Every struct also
 /// gets the two input-screening limits `max_dt` and `max_gyr` ([`ScreenLimits`](super::ScreenLimits)).
 macro_rules! params {
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
-            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr]; )*
+            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr] $(, $shared:ident)?; )*
         }
     ) => {
         $crate::filters::params_with_screening! {
             $(#[$meta])*
             pub struct $name {
-                $( $(#[doc = $fdoc])* $field: $ty = $default, $unit, [$min, $max]; )*
+                $( $(#[doc = $fdoc])* $field: $ty = $default, $unit, [$min, $max] $(, $shared)?; )*
                 /// Largest accepted time step; a sample after a longer gap is skipped whole
                 /// (counted in `Rejections::dt`): after a gap the orientation would be a guess.
-                max_dt: f64 = 1.0, "s", [1e-6, 1e6];
+                max_dt: f64 = 1.0, "s", [1e-6, 1e6], shared;
                 /// Largest accepted angular-rate magnitude; a faster sample is skipped whole
                 /// (counted in `Rejections::gyr`). The default (35 rad/s, about 2000 °/s) is the
                 /// usual MEMS full scale; raise it for a 4000 °/s gyroscope.
-                max_gyr: f64 = 35.0, "rad/s", [1e-3, 1e5];
+                max_gyr: f64 = 35.0, "rad/s", [1e-3, 1e5], shared;
             }
         }
     };
@@ -345,10 +350,16 @@ pub(crate) use params;
 
 /// The body of [`params!`] once the screening limits are appended.
 macro_rules! params_with_screening {
+    (@per_lane $ty:ty) => {
+        matches!(<$ty as $crate::filters::ParamValue>::KIND, $crate::filters::ParamKind::Real)
+    };
+    (@per_lane $ty:ty, shared) => {
+        false
+    };
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
-            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr]; )*
+            $( $(#[doc = $fdoc:literal])* $field:ident: $ty:ty = $default:expr, $unit:literal, [$min:expr, $max:expr] $(, $shared:ident)?; )*
         }
     ) => {
         $(#[$meta])*
@@ -367,6 +378,7 @@ macro_rules! params_with_screening {
             /// Every parameter with its kind, default, unit, range and description.
             pub const INFO: &'static [$crate::filters::ParamInfo] = &[ $( $crate::filters::ParamInfo {
                 name: stringify!($field), kind: <$ty as $crate::filters::ParamValue>::KIND,
+                per_lane: $crate::filters::params_with_screening!(@per_lane $ty $(, $shared)?),
                 default: $default, unit: $unit, min: $min, max: $max,
                 doc: concat!($($fdoc),*).trim_ascii(),
             }, )* ];

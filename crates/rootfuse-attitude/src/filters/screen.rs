@@ -23,7 +23,80 @@ impl Default for ScreenLimits {
     }
 }
 
-/// Per-lane counts of what was skipped, by reason (each a `u64` per lane).
+/// What happened to the last sample, per lane: Fusion's per-update flags, for every filter.
+///
+/// A whole-sample skip (`dt`, `gyr`) leaves the state untouched; a skipped correction
+/// (`acc`, `mag`) or a gated one (`acc_gated`, `mag_disturbed`) leaves the orientation to the
+/// gyroscope for that sample. `at_rest` is a detector state, not a skip.
+#[derive(Clone, Copy, Debug)]
+pub struct SampleFlags<T: Lane> {
+    /// Skipped whole: `dt` not finite, `≤ 0` or above `max_dt`.
+    pub dt: T::Mask,
+    /// Skipped whole: gyroscope not finite or faster than `max_gyr`.
+    pub gyr: T::Mask,
+    /// Accelerometer correction skipped: not finite or zero.
+    pub acc: T::Mask,
+    /// Magnetometer correction skipped (9D): absent, not finite or zero.
+    pub mag: T::Mask,
+    /// A correction refused by the filter's own gate (acceleration norm, innovation test).
+    pub acc_gated: T::Mask,
+    /// The magnetometer sample was rejected as a disturbed field.
+    pub mag_disturbed: T::Mask,
+    /// The filter detects the sensor at rest (filters with rest detection).
+    pub at_rest: T::Mask,
+}
+
+impl<T: Lane> Default for SampleFlags<T> {
+    fn default() -> Self {
+        let no = <T::Mask as Mask>::splat(false);
+        Self {
+            dt: no,
+            gyr: no,
+            acc: no,
+            mag: no,
+            acc_gated: no,
+            mag_disturbed: no,
+            at_rest: no,
+        }
+    }
+}
+
+impl<T: Lane> SampleFlags<T> {
+    /// Bit for a whole sample skipped because of `dt`.
+    pub const DT: u8 = 1;
+    /// Bit for a whole sample skipped because of the gyroscope.
+    pub const GYR: u8 = 2;
+    /// Bit for a skipped accelerometer correction.
+    pub const ACC: u8 = 4;
+    /// Bit for a skipped magnetometer correction.
+    pub const MAG: u8 = 8;
+    /// Bit for a correction refused by the filter's gate.
+    pub const ACC_GATED: u8 = 16;
+    /// Bit for the state "at rest".
+    pub const AT_REST: u8 = 32;
+    /// Bit for a magnetometer sample rejected as disturbed.
+    pub const MAG_DISTURBED: u8 = 64;
+
+    /// The flags of `lane` as bits (1 dt, 2 gyro, 4 accelerometer, 8 magnetometer skipped,
+    /// 16 gated, 32 at rest, 64 magnetic disturbance): the `flags` column of estimates.
+    pub fn bits(&self, lane: usize) -> u8 {
+        [
+            (self.dt, Self::DT),
+            (self.gyr, Self::GYR),
+            (self.acc, Self::ACC),
+            (self.mag, Self::MAG),
+            (self.acc_gated, Self::ACC_GATED),
+            (self.at_rest, Self::AT_REST),
+            (self.mag_disturbed, Self::MAG_DISTURBED),
+        ]
+        .iter()
+        .filter(|(m, _)| (m.bitmask() >> lane) & 1 == 1)
+        .fold(0, |bits, (_, b)| bits | b)
+    }
+}
+
+/// Per-lane counts of what was skipped, by reason (each a `u64` per lane), and the flags of
+/// the last sample.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Rejections<T: Lane> {
     /// Whole samples skipped: `dt` not finite, `≤ 0` or above `max_dt`.
@@ -36,9 +109,25 @@ pub struct Rejections<T: Lane> {
     pub mag: T::Counts,
     /// Corrections skipped by the filter's own gate (e.g. acceleration norm, innovation test).
     pub gated: T::Counts,
+    /// Magnetometer samples rejected as a disturbed field (filters that detect it).
+    pub mag_disturbed: T::Counts,
+    /// What happened to the last sample (set by the screening at the start of each update).
+    pub last: SampleFlags<T>,
 }
 
 impl<T: Lane> Rejections<T> {
+    /// Counts and flags corrections refused by the filter's own gate in the lanes of `mask`.
+    #[inline]
+    pub fn gate(&mut self, mask: T::Mask) {
+        T::count(&mut self.gated, mask);
+        self.last.acc_gated |= mask;
+    }
+    /// Counts and flags magnetometer samples rejected as a disturbed field.
+    #[inline]
+    pub fn reject_field(&mut self, mask: T::Mask) {
+        T::count(&mut self.mag_disturbed, mask);
+        self.last.mag_disturbed |= mask;
+    }
     /// Total whole-sample skips in `lane`.
     pub fn samples_skipped(&self, lane: usize) -> u64 {
         self.dt.as_ref()[lane] + self.gyr.as_ref()[lane]
@@ -105,6 +194,12 @@ impl<T: Lane> Screened<T> {
         let (acc, acc_unit_ok) = sample.acc.try_normalize();
         let acc_ok = acc_unit_ok & step;
         T::count(&mut counts.acc, step & !acc_unit_ok);
+        counts.last = SampleFlags {
+            dt: !dt_ok,
+            gyr: dt_ok & !gyr_ok,
+            acc: step & !acc_unit_ok,
+            ..SampleFlags::default()
+        };
 
         let up = Vec3::new(zero, zero, T::one());
         let north = Vec3::new(zero, T::one(), zero);
@@ -157,6 +252,8 @@ impl<T: Lane> Screened<T> {
 
     /// Counts a 9D magnetometer rejection for usable samples without a usable field.
     pub fn count_mag(&self, counts: &mut Rejections<T>) {
-        T::count(&mut counts.mag, self.step & !self.mag_ok);
+        let skipped = self.step & !self.mag_ok;
+        T::count(&mut counts.mag, skipped);
+        counts.last.mag = skipped;
     }
 }

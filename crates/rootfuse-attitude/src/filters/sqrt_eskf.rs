@@ -239,6 +239,9 @@ lane_state! {
         age: T,
         field: FieldReference<T>,
         initialized: T::Mask,
+        /// The orientation was set ([`OrientationFilter::set_quat`]) before the first sample:
+        /// start from it rather than from the accelerometer.
+        preset: T::Mask,
         mag_disturbed: T::Mask,
     }
 }
@@ -369,6 +372,7 @@ impl<T: Lane> SqrtEskf<T> {
                     rejected_time: zero,
                 },
                 initialized: <T::Mask as Mask>::splat(false),
+                preset: <T::Mask as Mask>::splat(false),
                 mag_disturbed: <T::Mask as Mask>::splat(false),
             },
             coef,
@@ -527,7 +531,9 @@ impl<T: Lane> SqrtEskf<T> {
             let zero = T::zero();
             let one = T::one();
             let (tilt, _) = tilt_from_acc(s.acc);
-            st.correction = Quat::select(fresh, tilt, st.correction);
+            // A preset orientation (strapdown still the identity) is kept; otherwise gravity.
+            let start = Quat::select(st.preset, st.correction, tilt);
+            st.correction = Quat::select(fresh, start, st.correction);
             st.strapdown = Quat::select(fresh, Quat::identity(), st.strapdown);
             st.acc_lp = Vec3::select(fresh, acc_raw, st.acc_lp);
             st.rot_lp = Mat::select(fresh, &Mat::identity(), &st.rot_lp);
@@ -537,9 +543,12 @@ impl<T: Lane> SqrtEskf<T> {
             st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
             let (psi, psi_ok) = magnetic_heading_error(tilt, s.mag);
             let mag_fresh = fresh & s.mag_ok & psi_ok;
-            st.heading_offset =
-                T::select(mag_fresh, psi, T::select(fresh, zero, st.heading_offset));
-            let h = tilt.rotate(s.mag);
+            st.heading_offset = T::select(
+                mag_fresh & !st.preset,
+                psi,
+                T::select(fresh, zero, st.heading_offset),
+            );
+            let h = start.rotate(s.mag);
             let dip = (-h.z).clamp(-one, one).asin();
             let f = &mut st.field;
             f.norm = T::select(mag_fresh, s.mag_norm, f.norm);
@@ -685,7 +694,7 @@ impl<T: Lane> SqrtEskf<T> {
             applied |= apply;
         }
         let gated = applied & !any_accept;
-        T::count(&mut self.rejections.gated, gated);
+        self.rejections.gate(gated);
         self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
     }
 
@@ -750,7 +759,7 @@ impl<T: Lane> SqrtEskf<T> {
         let use_mag = (ok_ref | adopt) & s.mag_ok;
         self.state.field = Select::select(s.mag_ok, &nf, &f);
         self.state.mag_disturbed = rejected & !adopt;
-        T::count(&mut self.rejections.gated, self.state.mag_disturbed);
+        self.rejections.reject_field(self.state.mag_disturbed);
 
         let st = &mut self.state;
         let q9 = Quat::from_heading(st.heading_offset) * q6;
@@ -864,6 +873,18 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         }
         let keep = s.step & (before.initialized | self.state.initialized);
         self.state = Select::select(keep, &self.state, &before);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`; a filter that
+        // has not started yet starts from `q` instead of the first accelerometer sample.
+        let st = &mut self.state;
+        st.correction = (q.normalize() * st.strapdown.conj()).normalize();
+        st.heading_offset = T::zero();
+        st.preset |= !st.initialized;
+    }
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.state.bias = bias;
+        true
     }
     fn quat(&self) -> Quat<T> {
         if self.nine_d {

@@ -9,9 +9,9 @@ pub use denoise::PolyDenoiser;
 pub use drift::{DriftConfig, DriftEstimator, DriftSample};
 
 use super::complementary::tilt_correction;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, params};
+use super::{Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, params};
 use crate::blocks::acc_mag_quat;
-use crate::preprocess::{Hampel, LowPass};
+use crate::preprocess::{Hampel, LowPass, hampel_threshold, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 use rootfuse_lsq::rls::{Potter, RecursiveLeastSquares, RlsConfig};
@@ -27,10 +27,10 @@ params! {
         smooth: f64 = 1.0, "1", [0.01, 1.0];
         /// Memory of the local quadratic least-squares denoiser (forgetting `τ/(τ + dt)` per
         /// sample).
-        denoise_tau: f64 = 0.01, "s", [1e-4, 10.0];
+        denoise_tau: f64 = 0.01, "s", [1e-4, 10.0], shared;
         /// Gyroscope white-noise standard deviation per sample (the denoiser's weight
         /// `1/σ²`; it scales its covariance only).
-        gyr_noise: f64 = 0.01, "rad/s", [1e-6, 10.0];
+        gyr_noise: f64 = 0.01, "rad/s", [1e-6, 10.0], shared;
         /// Memory of the quaternion least-squares fusion (forgetting `τ/(τ + dt)` per sample;
         /// the steady-state gain is `dt/(τ + dt)`).
         fusion_tau: f64 = 5.0, "s", [1e-3, 1e4];
@@ -42,21 +42,21 @@ params! {
         acc_dev: f64 = 0.5, "m/s²", [1e-3, 1e3];
         /// Length of one averaging block of the drift estimator (one drift measurement per
         /// two blocks).
-        drift_block: f64 = 0.5, "s", [0.01, 1000.0];
+        drift_block: f64 = 0.5, "s", [0.01, 1000.0], shared;
         /// Memory of the drift estimator.
-        drift_memory: f64 = 60.0, "s", [0.1, 1e7];
+        drift_memory: f64 = 60.0, "s", [0.1, 1e7], shared;
         /// Standard deviation of a block mean of the accelerometer quaternion's angle at rest
         /// (the drift measurement's noise).
-        drift_noise: f64 = 0.005, "rad", [1e-6, 1.0];
+        drift_noise: f64 = 0.005, "rad", [1e-6, 1.0], shared;
         /// Standard deviation of a block mean of the magnetometer heading at rest (the
         /// vertical row of the 9D drift measurement; larger than `drift_noise` because indoor
         /// fields are disturbed).
         drift_mag_noise: f64 = 0.2, "rad", [1e-6, 100.0];
         /// Relative gyro scale/alignment error: the drift measurement of a window that turned
         /// by `φ` gets the extra variance `(gyr_scale·φ)²`.
-        gyr_scale: f64 = 0.2, "1", [0.0, 1.0];
+        gyr_scale: f64 = 0.2, "1", [0.0, 1.0], shared;
         /// Prior standard deviation and largest drift estimate (covariance bound).
-        drift_max: f64 = 0.05, "rad/s", [1e-5, 5.0];
+        drift_max: f64 = 0.05, "rad/s", [1e-5, 5.0], shared;
         /// 9: heading of the accelerometer quaternion from the magnetometer; 6: from the gyro
         /// quaternion.
         dof: Dof = 9.0, "1", [6.0, 9.0];
@@ -142,6 +142,14 @@ const FUSION_PRIOR: f64 = 1.0;
 impl<T: Lane> LsqFusion<T> {
     /// A filter with the given parameters.
     pub fn new(p: &LsqFusionParams) -> Self {
+        Self::with_lane_params(&LaneParams::uniform(p))
+    }
+
+    /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
+    /// ones (`dof`, the denoiser's and the drift estimator's, marked `shared`, and the
+    /// screening limits) come from the first set.
+    pub fn with_lane_params(lanes: &LaneParams<'_, LsqFusionParams>) -> Self {
+        let p = lanes.first();
         let nine = p.dof.uses_magnetometer();
         let fusion = Potter::with_isotropic_prior(
             &Vector::from_column([T::one(), T::zero(), T::zero(), T::zero()]),
@@ -149,11 +157,13 @@ impl<T: Lane> LsqFusion<T> {
             RlsConfig::new(1.0),
         );
         let positive = |v: f64, default: f64| if v > 0.0 && v.is_finite() { v } else { default };
-        let acc_noise = positive(p.acc_noise, 0.02);
-        let mag_ratio = positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.2);
         Self {
-            hampel: core::array::from_fn(|_| Hampel::new(p.hampel_k)),
-            smooth: core::array::from_fn(|_| LowPass::new(p.smooth)),
+            hampel: core::array::from_fn(|_| {
+                Hampel::with_threshold(lanes.coef(|p| hampel_threshold(p.hampel_k)))
+            }),
+            smooth: core::array::from_fn(|_| {
+                LowPass::with_factor(lanes.coef(|p| low_pass_factor(p.smooth)))
+            }),
             denoise: core::array::from_fn(|_| PolyDenoiser::new(p.denoise_tau, p.gyr_noise)),
             drift: DriftEstimator::new(&DriftConfig {
                 block: p.drift_block,
@@ -169,11 +179,17 @@ impl<T: Lane> LsqFusion<T> {
             // P₀ = FUSION_PRIOR·I = I.
             fusion: fusion.expect("unreachable: constant, valid prior"),
             q: Quat::identity(),
-            inv_fusion_tau: T::from_f64(1.0 / positive(p.fusion_tau, 3.0)),
-            acc_weight: T::from_f64(1.0 / (acc_noise * acc_noise)),
-            inv_acc_dev: T::from_f64(1.0 / positive(p.acc_dev, 1.0)),
+            inv_fusion_tau: lanes.coef(|p| 1.0 / positive(p.fusion_tau, 3.0)),
+            acc_weight: lanes.coef(|p| {
+                let acc_noise = positive(p.acc_noise, 0.02);
+                1.0 / (acc_noise * acc_noise)
+            }),
+            inv_acc_dev: lanes.coef(|p| 1.0 / positive(p.acc_dev, 1.0)),
             nine_d: nine,
-            mag_drift_weight: T::from_f64(mag_ratio * mag_ratio),
+            mag_drift_weight: lanes.coef(|p| {
+                let mag_ratio = positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.2);
+                mag_ratio * mag_ratio
+            }),
             limits: p.screen_limits(),
             rejections: Rejections::default(),
         }
@@ -268,6 +284,18 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
             w_z,
         };
         self.drift.update(&sample, q_a);
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        let q = q.normalize();
+        // The fusion's estimate is the quaternion: restart it there with its prior spread.
+        if let Ok(fusion) = Potter::with_isotropic_prior(
+            &Vector::from_column(q.to_array()),
+            T::from_f64(FUSION_PRIOR),
+            RlsConfig::new(1.0),
+        ) {
+            self.fusion = fusion;
+            self.q = q;
+        }
     }
     fn quat(&self) -> Quat<T> {
         self.q
