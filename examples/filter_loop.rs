@@ -5,21 +5,9 @@
 //! `cargo run --release --example filter_loop -- FILE.csv FILTER DOF PRECISION REPEATS`
 //! prints `{"ns_per_sample": best of REPEATS, "checksum": ...}` as one JSON line.
 
-use rootfuse::attitude::registry::{AnyFilter, FilterSpec};
+use rootfuse::attitude::registry::FilterSpec;
 use rootfuse::attitude::{Dof, ImuSample, Lane, OrientationFilter, Vec3};
-use rootfuse::batch::{RejectionTotals, status_flags};
 use std::time::Instant;
-
-fn totals<T: Lane>(f: &AnyFilter<T>) -> RejectionTotals {
-    let r = f.rejections();
-    RejectionTotals {
-        dt: r.dt.as_ref()[0],
-        gyr: r.gyr.as_ref()[0],
-        acc: r.acc.as_ref()[0],
-        mag: r.mag.as_ref()[0],
-        gated: r.gated.as_ref()[0],
-    }
-}
 
 /// Runs the whole recording once and returns a checksum of the collected outputs.
 fn run<T: Lane>(spec: &FilterSpec, rec: &rootfuse::io::Recording) -> f64 {

@@ -9,7 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use rootfuse_attitude::filters::Rejections;
 use rootfuse_attitude::registry::{AnyFilter, FilterKind, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
-use rootfuse_batch::{Precision, RejectionTotals, status_flags};
+use rootfuse_batch::{Precision, RejectionTotals};
 
 /// Parses `precision` ("f32" or "f64").
 pub fn precision(text: &str) -> PyResult<Precision> {
@@ -95,13 +95,7 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
 
 /// Lane 0's counters.
 fn totals<T: Lane>(r: &Rejections<T>) -> RejectionTotals {
-    RejectionTotals {
-        dt: r.dt.as_ref()[0],
-        gyr: r.gyr.as_ref()[0],
-        acc: r.acc.as_ref()[0],
-        mag: r.mag.as_ref()[0],
-        gated: r.gated.as_ref()[0],
-    }
+    RejectionTotals::of_lane(r, 0)
 }
 
 /// What `update_batch` collects, flat, C order.
@@ -121,13 +115,12 @@ fn widen<T: Lane>(x: T) -> f64 {
 /// One step of `filter` on sample `s` (converted to `T` by rounding once), returning its flags.
 #[inline]
 fn step<T: Lane>(filter: &mut AnyFilter<T>, s: &ImuSample<f64>, dt: f64) -> u8 {
-    let before = totals(filter.rejections());
     let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
     filter.update(
         &ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
         T::from_f64(dt),
     );
-    totals(filter.rejections()).flags_since(&before) | status_flags(filter, 0)
+    filter.flags().bits(0)
 }
 
 /// The filter loop of `update_batch`, without the GIL.
@@ -244,6 +237,29 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
         _ => Err(PyValueError::new_err(format!(
             "{name}: expected 3 values (x, y, z), got shape {:?}",
             a.shape
+        ))),
+    }
+}
+
+fn quat_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 4]> {
+    let v: Vec<f64> = match arrays::float_array(obj, name) {
+        Ok(a) if a.shape.len() == 1 => a.into_vec(),
+        Ok(a) => {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected 4 values [w, x, y, z], got shape {:?}",
+                a.shape
+            )));
+        }
+        Err(_) => obj
+            .extract()
+            .map_err(|_| PyTypeError::new_err(format!("{name}: expected four numbers")))?,
+    };
+    match v.as_slice() {
+        [w, x, y, z] if v.iter().all(|c| c.is_finite()) && v.iter().any(|&c| c != 0.0) => {
+            Ok([*w, *x, *y, *z])
+        }
+        _ => Err(PyValueError::new_err(format!(
+            "{name}: expected 4 finite values [w, x, y, z], not all zero, got {v:?}"
         ))),
     }
 }
@@ -401,11 +417,44 @@ impl Filter {
     }
 
     /// What was skipped since the filter was built or reset, by reason:
-    /// `{"dt", "gyr", "acc", "mag", "gated"}` counts.
+    /// `{"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}` counts.
     #[getter]
     fn rejections<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let r = with_state!(&self.state, f => totals(f.rejections()));
         rejections_dict(py, &r)
+    }
+
+    /// Sets the orientation `[w, x, y, z]` (sensor to earth, ENU; normalised by the filter)
+    /// and marks the filter initialised: the next samples correct from there instead of
+    /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
+    fn set_quat(&mut self, q: &Bound<'_, PyAny>) -> PyResult<()> {
+        let q = quat_arg(q, "q")?;
+        with_state!(&mut self.state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
+        Ok(())
+    }
+
+    /// Sets the gyro-bias estimate, rad/s (sensor frame, 3 numbers). Returns False (and
+    /// changes nothing) for filters without a bias estimate.
+    fn set_bias(&mut self, bias: &Bound<'_, PyAny>) -> PyResult<bool> {
+        let b = vec3_arg(bias, "bias")?;
+        if !b.iter().all(|x| x.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "bias: expected finite values, got {b:?}"
+            )));
+        }
+        Ok(with_state!(&mut self.state, f => f.set_bias(Vec3::from_f64(b))))
+    }
+
+    /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
+    /// from north) becomes `heading`; the inclination is kept.
+    fn set_heading(&mut self, heading: f64) -> PyResult<()> {
+        if !heading.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "heading: expected a finite angle in rad, got {heading}"
+            )));
+        }
+        with_state!(&mut self.state, f => f.set_heading(Lane::from_f64(heading)));
+        Ok(())
     }
 
     /// Back to the state just after construction (same parameters and precision).
@@ -434,6 +483,7 @@ pub fn rejections_dict<'py>(py: Python<'py>, r: &RejectionTotals) -> PyResult<Bo
     d.set_item("acc", r.acc)?;
     d.set_item("mag", r.mag)?;
     d.set_item("gated", r.gated)?;
+    d.set_item("mag_disturbed", r.mag_disturbed)?;
     Ok(d)
 }
 

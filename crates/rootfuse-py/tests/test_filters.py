@@ -115,7 +115,7 @@ def test_update_one_sample_equals_batch():
     np.testing.assert_array_equal(b.bias, batch["bias"][-1])
     np.testing.assert_array_equal(b.covariance, batch["covariance"][-1])
     assert b.quat.shape == (4,) and b.bias.shape == (3,) and b.covariance.shape == (3, 3)
-    assert set(b.rejections) == {"dt", "gyr", "acc", "mag", "gated"}
+    assert set(b.rejections) == {"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}
     # update accepts plain sequences too
     b.update([0.0, 0.0, 0.0], [0.0, 0.0, 9.81], None, dt=0.01)
 
@@ -161,3 +161,28 @@ def test_build_info():
     info = rf.build_info()
     assert info["missing"] == []
     assert isinstance(info["compiled"], list)
+
+
+def test_state_control():
+    f = rf.Filter("sqrt-eskf", dof=6)
+    a = np.radians(30.0)
+    q = np.array([np.cos(a / 2), np.sin(a / 2), 0.0, 0.0])  # 30° roll
+    f.set_quat(q * 2.0)  # normalised by the filter
+    np.testing.assert_allclose(f.quat, q, atol=1e-12)
+    # started from the set orientation, not from the accelerometer's
+    g = np.zeros((1, 3)); acc = np.array([[0.0, 9.81 * np.sin(a), 9.81 * np.cos(a)]])
+    f.update_batch(g, acc, None, 0.01)
+    assert abs(np.degrees(2 * np.arccos(min(1.0, abs(float(f.quat @ q)))))) < 1.0
+    f.set_heading(np.radians(90.0))
+    w, x, y, z = f.quat
+    heading = np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    assert heading == pytest.approx(90.0, abs=1e-6)
+    assert f.set_bias([0.01, -0.02, 0.0])
+    np.testing.assert_allclose(f.bias, [0.01, -0.02, 0.0], atol=1e-12)
+    assert not rf.Filter("complementary").set_bias([0.1, 0.0, 0.0])  # no bias estimate
+    with pytest.raises(ValueError, match="q: expected 4 finite values"):
+        f.set_quat([0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="bias: expected finite values"):
+        f.set_bias([np.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match="heading: expected a finite angle"):
+        f.set_heading(float("inf"))

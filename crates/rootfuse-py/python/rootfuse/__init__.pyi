@@ -31,6 +31,7 @@ class Rejections(TypedDict):
     acc: int
     mag: int
     gated: int
+    mag_disturbed: int
 
 class Filter:
     """A registered orientation filter by name (``filters()`` lists them), f32 or f64.
@@ -84,6 +85,12 @@ class Filter:
     @property
     def rejections(self) -> Rejections:
         """Counts of what was skipped since construction or reset."""
+    def set_quat(self, q: Union[Sequence[float], FloatArray]) -> None:
+        """Sets the orientation [w, x, y, z] (normalised) and marks the filter initialised."""
+    def set_bias(self, bias: Union[Sequence[float], FloatArray]) -> bool:
+        """Sets the gyro bias, rad/s; False for filters without one."""
+    def set_heading(self, heading: float) -> None:
+        """Turns about earth-up to this heading, rad (counter-clockwise from north)."""
     def reset(self) -> None:
         """Back to the freshly built state (same parameters and precision)."""
 
