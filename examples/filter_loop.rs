@@ -22,12 +22,11 @@ fn run<T: Lane>(spec: &FilterSpec, rec: &rootfuse::io::Recording) -> f64 {
     for i in 0..n {
         let s = rec.sample(i);
         let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
-        let before = totals(&f);
         f.update(
             &ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
             T::from_f64(rec.dt(i)),
         );
-        flags.push(totals(&f).flags_since(&before) | status_flags(&f, 0));
+        flags.push(f.flags().bits(0));
         let q = f.quat();
         quat.extend_from_slice(&[w(q.w), w(q.x), w(q.y), w(q.z)]);
         let b = f.bias();

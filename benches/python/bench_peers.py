@@ -130,8 +130,9 @@ def main():
 
         def go_fusion():
             ahrs = imufusion.Ahrs()
+            ahrs.set_sample_period(ts)  # imufusion 1.3: the period is set once
             for i in range(small):
-                ahrs.update(g_deg[i], a_g[i], ml[i], ts)
+                ahrs.update(g_deg[i], a_g[i], ml[i])
         row("imufusion Ahrs 9D per-sample loop (C)", best_of(go_fusion, 2) * 1e9 / small)
     except ImportError:
         row("imufusion", float("nan"), None, "not installed")

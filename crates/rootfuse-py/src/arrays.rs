@@ -22,13 +22,6 @@ enum Data<'py> {
 }
 
 impl FloatArray<'_> {
-    /// An owned array.
-    pub fn owned(data: Vec<f64>, shape: Vec<usize>) -> Self {
-        Self {
-            data: Data::Owned(data),
-            shape,
-        }
-    }
     /// The values in C order.
     pub fn as_slice(&self) -> &[f64] {
         match &self.data {

@@ -33,6 +33,27 @@ fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<boo
     }
 }
 
+/// Estimates, truth (both `(N, 4)`, same N) and the optional use mask.
+type Compared = (Vec<Quat<f64>>, Vec<Quat<f64>>, Option<Vec<bool>>);
+
+fn compared(
+    est: &Bound<'_, PyAny>,
+    truth: &Bound<'_, PyAny>,
+    r#use: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Compared> {
+    let e = quats(est, "est")?;
+    let t = quats(truth, "truth")?;
+    if t.len() != e.len() {
+        return Err(PyValueError::new_err(format!(
+            "truth: has {} samples but est has {}",
+            t.len(),
+            e.len()
+        )));
+    }
+    let mask = use_mask(r#use, e.len())?;
+    Ok((e, t, mask))
+}
+
 fn alignment(dof: u8) -> PyResult<Alignment> {
     match dof {
         9 => Ok(Alignment::NineD),
@@ -61,16 +82,7 @@ pub fn rmse<'py>(
     r#use: Option<&Bound<'py, PyAny>>,
     dof: u8,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let e = quats(est, "est")?;
-    let t = quats(truth, "truth")?;
-    same_length("truth", t.len(), e.len()).map_err(|_| {
-        PyValueError::new_err(format!(
-            "truth: has {} samples but est has {}",
-            t.len(),
-            e.len()
-        ))
-    })?;
-    let mask = use_mask(r#use, e.len())?;
+    let (e, t, mask) = compared(est, truth, r#use)?;
     let r = metrics::rmse(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
     let d = PyDict::new(py);
     d.set_item("total", r.total)?;
@@ -93,16 +105,7 @@ pub fn error_series<'py>(
     r#use: Option<&Bound<'py, PyAny>>,
     dof: u8,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let e = quats(est, "est")?;
-    let t = quats(truth, "truth")?;
-    if t.len() != e.len() {
-        return Err(PyValueError::new_err(format!(
-            "truth: has {} samples but est has {}",
-            t.len(),
-            e.len()
-        )));
-    }
-    let mask = use_mask(r#use, e.len())?;
+    let (e, t, mask) = compared(est, truth, r#use)?;
     let s = metrics::error_series(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
     let d = PyDict::new(py);
     d.set_item("total", PyArray1::from_vec(py, s.total))?;
@@ -122,9 +125,7 @@ pub fn heading_offset(
     truth: &Bound<'_, PyAny>,
     r#use: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Option<f64>> {
-    let e = quats(est, "est")?;
-    let t = quats(truth, "truth")?;
-    let mask = use_mask(r#use, e.len())?;
+    let (e, t, mask) = compared(est, truth, r#use)?;
     Ok(metrics::heading_offset(&e, &t, mask.as_deref())
         .map_err(metric_err)?
         .map(f64::to_degrees))
@@ -228,13 +229,7 @@ pub fn write_recording(
     };
     let mask = use_mask(r#use, n)?;
     let steps = Steps::Times(t.clone());
-    let input = Inputs {
-        gyr: gyr.as_slice(),
-        acc: acc.as_slice(),
-        mag: mag.as_ref().map(|m| m.as_slice()),
-        steps: &steps,
-        len: n,
-    };
+    let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, t, truth, mask);
     py.detach(|| rootfuse_io::write_recording(&path, &rec))
         .map_err(|e| PyIOError::new_err(e.to_string()))

@@ -70,7 +70,24 @@ pub struct Inputs<'a> {
     pub len: usize,
 }
 
-impl Inputs<'_> {
+impl<'a> Inputs<'a> {
+    /// The input of arrays read by [`imu_arrays`] with their steps.
+    pub fn new(
+        gyr: &'a arrays::FloatArray<'_>,
+        acc: &'a arrays::FloatArray<'_>,
+        mag: Option<&'a arrays::FloatArray<'_>>,
+        steps: &'a Steps,
+        len: usize,
+    ) -> Self {
+        Self {
+            gyr: gyr.as_slice(),
+            acc: acc.as_slice(),
+            mag: mag.map(|m| m.as_slice()),
+            steps,
+            len,
+        }
+    }
+
     #[inline]
     pub fn sample(&self, i: usize) -> ImuSample<f64> {
         let v = |a: &[f64]| Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
@@ -224,14 +241,21 @@ pub fn imu_arrays<'py>(
 }
 
 fn vec3_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
-    let a = arrays::float_array(obj, name).or_else(|_| {
-        // A plain sequence of three numbers.
-        let v: Vec<f64> = obj
-            .extract()
-            .map_err(|_| PyTypeError::new_err(format!("{name}: expected three numbers")))?;
-        let n = v.len();
-        Ok::<_, PyErr>(arrays::FloatArray::owned(v, vec![n]))
-    })?;
+    // The per-sample path: a plain sequence of three numbers is read directly, without
+    // building an error for the array path first.
+    if obj.cast::<numpy::PyUntypedArray>().is_err() {
+        return obj.extract::<[f64; 3]>().map_err(|_| {
+            let len = obj
+                .len()
+                .map_or(String::new(), |n| format!(", got {n} values"));
+            if obj.len().is_ok() && obj.extract::<Vec<f64>>().is_ok() {
+                PyValueError::new_err(format!("{name}: expected 3 values (x, y, z){len}"))
+            } else {
+                PyTypeError::new_err(format!("{name}: expected three numbers"))
+            }
+        });
+    }
+    let a = arrays::float_array(obj, name)?;
     match a.as_slice() {
         [x, y, z] if a.shape.len() == 1 => Ok([*x, *y, *z]),
         _ => Err(PyValueError::new_err(format!(
@@ -340,13 +364,7 @@ impl Filter {
         let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
         let steps = Steps::parse(dt, t, n)?;
         let with_cov = self.has_covariance();
-        let input = Inputs {
-            gyr: gyr.as_slice(),
-            acc: acc.as_slice(),
-            mag: mag.as_ref().map(|m| m.as_slice()),
-            steps: &steps,
-            len: n,
-        };
+        let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
         let state = &mut self.state;
         let series = py.detach(|| with_state!(state, f => run_series(f, &input, with_cov)));
         let out = PyDict::new(py);
@@ -571,13 +589,7 @@ pub fn smooth<'py>(
             "dt: the smoother takes sample times t (s, shape (N,)) or a fixed step dt (a number), not per-sample steps",
         ));
     }
-    let input = Inputs {
-        gyr: gyr.as_slice(),
-        acc: acc.as_slice(),
-        mag: mag.as_ref().map(|m| m.as_slice()),
-        steps: &steps,
-        len: n,
-    };
+    let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, steps.times(n), None, None);
     let nine_d = spec.uses_magnetometer();
     let result = py.detach(|| {
