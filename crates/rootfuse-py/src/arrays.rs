@@ -1,0 +1,235 @@
+//! Reading NumPy arguments: dtype, shape and length checks with messages that name the
+//! argument and what was expected. Nothing here panics on user data.
+
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+/// A float array read from Python, as `f64` values in C order, with its shape.
+///
+/// A C-contiguous `float64` array is borrowed, not copied (the borrow is a slice, so the GIL
+/// can be released while Rust reads it); `float32` arrays are widened exactly and
+/// non-contiguous arrays are copied in C order. Other dtypes are a `TypeError`.
+pub struct FloatArray<'py> {
+    data: Data<'py>,
+    /// The shape.
+    pub shape: Vec<usize>,
+}
+
+enum Data<'py> {
+    Borrowed(numpy::PyReadonlyArrayDyn<'py, f64>),
+    Owned(Vec<f64>),
+}
+
+impl FloatArray<'_> {
+    /// The values in C order.
+    pub fn as_slice(&self) -> &[f64] {
+        match &self.data {
+            // `float_array` borrows only contiguous arrays, so this never falls back.
+            Data::Borrowed(a) => a.as_slice().unwrap_or(&[]),
+            Data::Owned(v) => v,
+        }
+    }
+    /// The values in C order, owned.
+    pub fn into_vec(self) -> Vec<f64> {
+        match self.data {
+            Data::Borrowed(a) => a.as_slice().map(<[f64]>::to_vec).unwrap_or_default(),
+            Data::Owned(v) => v,
+        }
+    }
+}
+
+fn dtype_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.getattr("dtype")
+        .and_then(|d| d.str().map(|s| s.to_string()))
+        .unwrap_or_else(|_| obj.get_type().name().map_or("?".into(), |n| n.to_string()))
+}
+
+/// Reads `obj` (argument `name`) as a float32/float64 NumPy array of any shape.
+pub fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<FloatArray<'py>> {
+    if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
+        let shape = a.shape().to_vec();
+        let ro = a.try_readonly().map_err(|e| {
+            PyValueError::new_err(format!("{name}: the array cannot be borrowed ({e})"))
+        })?;
+        // `as_slice` also accepts Fortran order, whose memory is not C order: check first.
+        let data = if a.is_c_contiguous() && ro.as_slice().is_ok() {
+            Data::Borrowed(ro)
+        } else {
+            Data::Owned(ro.as_array().iter().copied().collect())
+        };
+        return Ok(FloatArray { data, shape });
+    }
+    if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
+        let shape = a.shape().to_vec();
+        let ro = a.try_readonly().map_err(|e| {
+            PyValueError::new_err(format!("{name}: the array cannot be borrowed ({e})"))
+        })?;
+        let data = Data::Owned(ro.as_array().iter().map(|&x| f64::from(x)).collect());
+        return Ok(FloatArray { data, shape });
+    }
+    if obj.cast::<numpy::PyUntypedArray>().is_ok() {
+        return Err(PyTypeError::new_err(format!(
+            "{name}: expected a float32 or float64 numpy array, got dtype {}",
+            dtype_name(obj)
+        )));
+    }
+    Err(PyTypeError::new_err(format!(
+        "{name}: expected a numpy array of float32 or float64, got {}",
+        obj.get_type().name().map_or("?".into(), |n| n.to_string())
+    )))
+}
+
+fn shape_text(shape: &[usize]) -> String {
+    let parts: Vec<String> = shape.iter().map(usize::to_string).collect();
+    if parts.len() == 1 {
+        format!("({},)", parts[0])
+    } else {
+        format!("({})", parts.join(", "))
+    }
+}
+
+/// `obj` as an `(N, cols)` array; returns the values and `N`.
+pub fn matrix<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    cols: usize,
+) -> PyResult<(FloatArray<'py>, usize)> {
+    let a = float_array(obj, name)?;
+    match *a.shape.as_slice() {
+        [n, c] if c == cols => Ok((a, n)),
+        _ => Err(PyValueError::new_err(format!(
+            "{name}: expected shape (N, {cols}), got {}",
+            shape_text(&a.shape)
+        ))),
+    }
+}
+
+/// `obj` as a one-dimensional array.
+pub fn vector(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
+    let a = float_array(obj, name)?;
+    let shape = a.shape.clone();
+    match shape.as_slice() {
+        [_] => Ok(a.into_vec()),
+        s => Err(PyValueError::new_err(format!(
+            "{name}: expected shape (N,), got {}",
+            shape_text(s)
+        ))),
+    }
+}
+
+/// `obj` as a square `(n, n)` array.
+pub fn square(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>> {
+    let a = float_array(obj, name)?;
+    let shape = a.shape.clone();
+    match shape.as_slice() {
+        [r, c] if *r == n && *c == n => Ok(a.into_vec()),
+        s => Err(PyValueError::new_err(format!(
+            "{name}: expected shape ({n}, {n}), got {}",
+            shape_text(s)
+        ))),
+    }
+}
+
+/// Checks that `got` samples of argument `name` agree with the `n` of `gyr`.
+pub fn same_length(name: &str, got: usize, n: usize) -> PyResult<()> {
+    if got == n {
+        Ok(())
+    } else {
+        Err(PyValueError::new_err(format!(
+            "{name}: has {got} samples but gyr has {n}; every per-sample argument must have the same length"
+        )))
+    }
+}
+
+/// A finite, positive scalar argument.
+pub fn positive(value: f64, name: &str) -> PyResult<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(PyValueError::new_err(format!(
+            "{name}: expected a finite number > 0, got {value}"
+        )))
+    }
+}
+
+/// The time step before each sample, from one of `dt` (scalar or per sample) or `t`.
+#[derive(Clone, Debug)]
+pub enum Steps {
+    /// The same step before every sample, s.
+    Fixed(f64),
+    /// The step before each sample, s.
+    PerSample(Vec<f64>),
+    /// Sample times, s: the step before sample `i > 0` is `t[i] − t[i−1]`, before sample 0
+    /// `t[1] − t[0]` (as `rootfuse_attitude::Recording::dt`).
+    Times(Vec<f64>),
+}
+
+impl Steps {
+    /// Reads `dt` / `t` (exactly one must be given) for `n` samples.
+    pub fn parse(
+        dt: Option<&Bound<'_, PyAny>>,
+        t: Option<&Bound<'_, PyAny>>,
+        n: usize,
+    ) -> PyResult<Self> {
+        match (dt, t) {
+            (Some(_), Some(_)) => Err(PyValueError::new_err(
+                "dt, t: give either dt (scalar or per sample) or t (sample times), not both",
+            )),
+            (None, None) => Err(PyValueError::new_err(
+                "dt, t: missing the sampling: give dt (s, scalar or shape (N,)) or t (s, shape (N,))",
+            )),
+            (Some(dt), None) => {
+                if let Ok(x) = dt.extract::<f64>()
+                    && dt.cast::<numpy::PyUntypedArray>().is_err()
+                {
+                    return Ok(Self::Fixed(positive(x, "dt")?));
+                }
+                let v = vector(dt, "dt")?;
+                same_length("dt", v.len(), n)?;
+                Ok(Self::PerSample(v))
+            }
+            (None, Some(t)) => {
+                let v = vector(t, "t")?;
+                same_length("t", v.len(), n)?;
+                Ok(Self::Times(v))
+            }
+        }
+    }
+
+    /// The step before sample `i`, s (non-finite or non-positive steps are passed on: the
+    /// filter skips such a sample and flags it).
+    #[inline]
+    pub fn at(&self, i: usize) -> f64 {
+        match self {
+            Self::Fixed(dt) => *dt,
+            Self::PerSample(v) => v[i],
+            Self::Times(t) => match i {
+                _ if t.len() < 2 => 0.0,
+                0 => t[1] - t[0],
+                _ => t[i] - t[i - 1],
+            },
+        }
+    }
+
+    /// Sample times for `n` samples: `t` as given, or `k·dt` for a fixed step, or the running
+    /// sum of per-sample steps (starting at 0).
+    pub fn times(&self, n: usize) -> Vec<f64> {
+        match self {
+            Self::Fixed(dt) => (0..n).map(|k| k as f64 * dt).collect(),
+            Self::PerSample(v) => {
+                let mut acc = 0.0;
+                v.iter()
+                    .enumerate()
+                    .map(|(k, d)| {
+                        if k > 0 {
+                            acc += d;
+                        }
+                        acc
+                    })
+                    .collect()
+            }
+            Self::Times(t) => t.clone(),
+        }
+    }
+}

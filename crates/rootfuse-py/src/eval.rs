@@ -1,0 +1,291 @@
+//! Metrics (`rootfuse_eval::metrics`), the simulator (`rootfuse_eval::sim`) and recordings on
+//! disk (`rootfuse_io`).
+
+use crate::arrays::{Steps, matrix, same_length, vector};
+use crate::filter::{Inputs, imu_arrays, recording};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::{PyIOError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rootfuse_attitude::{Quat, Recording};
+use rootfuse_eval::metrics::{self, Alignment};
+
+fn quats(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Quat<f64>>> {
+    let (a, _) = matrix(obj, name, 4)?;
+    Ok(a.as_slice()
+        .chunks_exact(4)
+        .map(|c| Quat::new(c[0], c[1], c[2], c[3]))
+        .collect())
+}
+
+fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<bool>>> {
+    match obj {
+        None => Ok(None),
+        Some(o) if o.is_none() => Ok(None),
+        Some(o) => {
+            let v: Vec<bool> = match o.extract::<Vec<bool>>() {
+                Ok(v) => v,
+                Err(_) => vector(o, "use")?.iter().map(|&x| x != 0.0).collect(),
+            };
+            same_length("use", v.len(), n)?;
+            Ok(Some(v))
+        }
+    }
+}
+
+/// Estimates, truth (both `(N, 4)`, same N) and the optional use mask.
+type Compared = (Vec<Quat<f64>>, Vec<Quat<f64>>, Option<Vec<bool>>);
+
+fn compared(
+    est: &Bound<'_, PyAny>,
+    truth: &Bound<'_, PyAny>,
+    r#use: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Compared> {
+    let e = quats(est, "est")?;
+    let t = quats(truth, "truth")?;
+    if t.len() != e.len() {
+        return Err(PyValueError::new_err(format!(
+            "truth: has {} samples but est has {}",
+            t.len(),
+            e.len()
+        )));
+    }
+    let mask = use_mask(r#use, e.len())?;
+    Ok((e, t, mask))
+}
+
+fn alignment(dof: u8) -> PyResult<Alignment> {
+    match dof {
+        9 => Ok(Alignment::NineD),
+        6 => Ok(Alignment::SixD),
+        _ => Err(PyValueError::new_err(format!(
+            "dof: expected 6 or 9, got {dof}"
+        ))),
+    }
+}
+
+fn metric_err(e: metrics::MetricsError) -> PyErr {
+    PyValueError::new_err(format!("est, truth: {e}"))
+}
+
+/// The BROAD RMSE, degrees, of estimates `est` `(N, 4)` against `truth` `(N, 4)` (both
+/// `[w, x, y, z]`, sensor to earth) over the samples with `use` (bool `(N,)`, all when None)
+/// and finite truth. `dof=6` first removes the constant heading offset (circular mean), as
+/// BROAD does for 6D estimates. Returns `{"total", "heading", "inclination", "n_used",
+/// "heading_offset"}` (degrees; the offset removed, 0 for 9D).
+#[pyfunction]
+#[pyo3(signature = (est, truth, *, r#use=None, dof=9))]
+pub fn rmse<'py>(
+    py: Python<'py>,
+    est: &Bound<'py, PyAny>,
+    truth: &Bound<'py, PyAny>,
+    r#use: Option<&Bound<'py, PyAny>>,
+    dof: u8,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (e, t, mask) = compared(est, truth, r#use)?;
+    let r = metrics::rmse(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
+    let d = PyDict::new(py);
+    d.set_item("total", r.total)?;
+    d.set_item("heading", r.heading)?;
+    d.set_item("inclination", r.inclination)?;
+    d.set_item("n_used", r.n_used)?;
+    d.set_item("heading_offset", r.heading_offset)?;
+    Ok(d)
+}
+
+/// Per-sample BROAD errors, degrees (NaN where the truth is unknown), after the alignment of
+/// `dof` (see `rmse`). Returns `{"total", "heading", "inclination"}` float64 `(N,)`, `"used"`
+/// bool `(N,)` and `"heading_offset"` (degrees).
+#[pyfunction]
+#[pyo3(signature = (est, truth, *, r#use=None, dof=9))]
+pub fn error_series<'py>(
+    py: Python<'py>,
+    est: &Bound<'py, PyAny>,
+    truth: &Bound<'py, PyAny>,
+    r#use: Option<&Bound<'py, PyAny>>,
+    dof: u8,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (e, t, mask) = compared(est, truth, r#use)?;
+    let s = metrics::error_series(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
+    let d = PyDict::new(py);
+    d.set_item("total", PyArray1::from_vec(py, s.total))?;
+    d.set_item("heading", PyArray1::from_vec(py, s.heading))?;
+    d.set_item("inclination", PyArray1::from_vec(py, s.inclination))?;
+    d.set_item("used", PyArray1::from_vec(py, s.used))?;
+    d.set_item("heading_offset", s.heading_offset)?;
+    Ok(d)
+}
+
+/// The 6D heading offset, degrees in (−180, 180]: the circular mean heading of `est` relative
+/// to `truth` over the counted samples; None when undefined.
+#[pyfunction]
+#[pyo3(signature = (est, truth, *, r#use=None))]
+pub fn heading_offset(
+    est: &Bound<'_, PyAny>,
+    truth: &Bound<'_, PyAny>,
+    r#use: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<f64>> {
+    let (e, t, mask) = compared(est, truth, r#use)?;
+    Ok(metrics::heading_offset(&e, &t, mask.as_deref())
+        .map_err(metric_err)?
+        .map(f64::to_degrees))
+}
+
+/// A recording as a dict of float64 arrays: `t` `(N,)` s, `gyr` `(N, 3)` rad/s, `acc` `(N, 3)`
+/// m/s², `mag` `(N, 3)` or None, `truth` `(N, 4)` `[w, x, y, z]` or None (NaN where unknown),
+/// `use` bool `(N,)` or None, `name`.
+fn recording_dict<'py>(py: Python<'py>, rec: Recording) -> PyResult<Bound<'py, PyDict>> {
+    let n = rec.len();
+    let v3 = |v: &[rootfuse_attitude::Vec3<f64>]| -> Vec<f64> {
+        v.iter().flat_map(|x| [x.x, x.y, x.z]).collect()
+    };
+    let d = PyDict::new(py);
+    d.set_item("name", &rec.name)?;
+    d.set_item("gyr", PyArray1::from_vec(py, v3(&rec.gyr)).reshape([n, 3])?)?;
+    d.set_item("acc", PyArray1::from_vec(py, v3(&rec.acc)).reshape([n, 3])?)?;
+    match &rec.mag {
+        Some(m) => d.set_item("mag", PyArray1::from_vec(py, v3(m)).reshape([n, 3])?)?,
+        None => d.set_item("mag", py.None())?,
+    }
+    match &rec.truth {
+        Some(q) => {
+            let q: Vec<f64> = q.iter().flat_map(|q| [q.w, q.x, q.y, q.z]).collect();
+            d.set_item("truth", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
+        }
+        None => d.set_item("truth", py.None())?,
+    }
+    match rec.use_mask {
+        Some(u) => d.set_item("use", PyArray1::from_vec(py, u))?,
+        None => d.set_item("use", py.None())?,
+    }
+    d.set_item("t", PyArray1::from_vec(py, rec.t))?;
+    Ok(d)
+}
+
+/// Simulates an IMU with the named preset (`scenario_names()`), seeded: returns a recording
+/// dict (see `read_csv`) with the true orientation in `truth`. `duration_s` s, `rate_hz` Hz.
+#[pyfunction]
+#[pyo3(signature = (scenario, *, seed=0, duration_s=10.0, rate_hz=100.0))]
+pub fn simulate<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    seed: u64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let rec = py
+        .detach(|| rootfuse_eval::sim::scenario(scenario, seed, duration_s, rate_hz))
+        .map_err(|e| PyValueError::new_err(format!("scenario: {e}")))?;
+    recording_dict(py, rec)
+}
+
+/// The simulator's preset names.
+#[pyfunction]
+pub fn scenario_names() -> Vec<&'static str> {
+    rootfuse_eval::sim::scenario_names().collect()
+}
+
+/// Reads a recording CSV (`t,gx,gy,gz,ax,ay,az[,mx,my,mz][,qw,qx,qy,qz][,use]`, the
+/// broad_csv format) into a dict: `t` `(N,)` s, `gyr` `(N, 3)` rad/s, `acc` `(N, 3)` m/s²,
+/// `mag` `(N, 3)` or None, `truth` `(N, 4)` or None, `use` bool `(N,)` or None, `name`.
+/// A malformed file raises ValueError naming file, line and column; a missing one OSError.
+#[pyfunction]
+pub fn read_csv<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let rec = py
+        .detach(|| rootfuse_io::read_csv(&path))
+        .map_err(|e| match e {
+            rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
+            _ => PyValueError::new_err(e.to_string()),
+        })?;
+    recording_dict(py, rec)
+}
+
+/// Writes a recording in the format `read_csv` reads, atomically (temporary file, then
+/// rename). `t` `(N,)` s, `gyr`, `acc`, `mag` (or None) `(N, 3)`, `truth` `(N, 4)` or None,
+/// `use` bool `(N,)` or None. Numbers are written in shortest round-trip form.
+#[pyfunction]
+#[pyo3(signature = (path, t, gyr, acc, mag=None, *, truth=None, r#use=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn write_recording(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    t: &Bound<'_, PyAny>,
+    gyr: &Bound<'_, PyAny>,
+    acc: &Bound<'_, PyAny>,
+    mag: Option<&Bound<'_, PyAny>>,
+    truth: Option<&Bound<'_, PyAny>>,
+    r#use: Option<&Bound<'_, PyAny>>,
+) -> PyResult<()> {
+    let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
+    let t = vector(t, "t")?;
+    same_length("t", t.len(), n)?;
+    let truth = match truth {
+        Some(q) if !q.is_none() => {
+            let (q, nq) = matrix(q, "truth", 4)?;
+            same_length("truth", nq, n)?;
+            Some(q.into_vec())
+        }
+        _ => None,
+    };
+    let mask = use_mask(r#use, n)?;
+    let steps = Steps::Times(t.clone());
+    let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
+    let rec = recording(&input, t, truth, mask);
+    py.detach(|| rootfuse_io::write_recording(&path, &rec))
+        .map_err(|e| PyIOError::new_err(e.to_string()))
+}
+
+/// Writes estimates as CSV `t,qw,qx,qy,qz` plus `extra` columns (`{name: (N,) array}`),
+/// atomically, in the format `rootfuse run` writes. `t` `(N,)` s, `quat` `(N, 4)`.
+#[pyfunction]
+#[pyo3(signature = (path, t, quat, extra=None))]
+pub fn write_estimates(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    t: &Bound<'_, PyAny>,
+    quat: &Bound<'_, PyAny>,
+    extra: Option<&Bound<'_, PyDict>>,
+) -> PyResult<()> {
+    let t = vector(t, "t")?;
+    let q = quats(quat, "quat")?;
+    same_length("quat", q.len(), t.len()).map_err(|_| {
+        PyValueError::new_err(format!("quat: has {} rows but t has {}", q.len(), t.len()))
+    })?;
+    let mut columns: Vec<(String, Vec<f64>)> = Vec::new();
+    if let Some(extra) = extra {
+        for (k, v) in extra.iter() {
+            let name: String = k.extract()?;
+            let values = vector(&v, &name)?;
+            columns.push((name, values));
+        }
+    }
+    let refs: Vec<(&str, &[f64])> = columns
+        .iter()
+        .map(|(n, v)| (n.as_str(), v.as_slice()))
+        .collect();
+    py.detach(|| rootfuse_io::write_estimates(&path, &t, &q, &refs))
+        .map_err(|e| match e {
+            rootfuse_io::WriteError::Io { .. } => PyIOError::new_err(e.to_string()),
+            _ => PyValueError::new_err(e.to_string()),
+        })
+}
+
+/// Reads an estimates CSV (`t,qw,qx,qy,qz`, extra columns ignored): `{"t": (N,), "quat": (N, 4)}`.
+#[pyfunction]
+pub fn read_estimates<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+) -> PyResult<Bound<'py, PyDict>> {
+    let est = py
+        .detach(|| rootfuse_io::read_estimates(&path))
+        .map_err(|e| match e {
+            rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
+            _ => PyValueError::new_err(e.to_string()),
+        })?;
+    let n = est.t.len();
+    let q: Vec<f64> = est.quat.iter().flat_map(|q| [q.w, q.x, q.y, q.z]).collect();
+    let d = PyDict::new(py);
+    d.set_item("t", PyArray1::from_vec(py, est.t))?;
+    d.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
+    Ok(d)
+}

@@ -1,0 +1,608 @@
+//! One filter, one channel: `Filter` (whole arrays with `update_batch`, or one sample at a
+//! time), the registry listing, and the offline smoother.
+
+use crate::arrays::{self, Steps, matrix, same_length};
+use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use rootfuse_attitude::filters::Rejections;
+use rootfuse_attitude::registry::{AnyFilter, FilterKind, FilterSpec};
+use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
+use rootfuse_batch::{Precision, RejectionTotals};
+
+/// Parses `precision` ("f32" or "f64").
+pub fn precision(text: &str) -> PyResult<Precision> {
+    match text {
+        "f32" | "float32" => Ok(Precision::F32),
+        "f64" | "float64" => Ok(Precision::F64),
+        _ => Err(PyValueError::new_err(format!(
+            "precision: expected \"f32\" or \"f64\", got {text:?}"
+        ))),
+    }
+}
+
+/// Builds a validated spec from a name, `dof` and keyword parameters (registry checks).
+pub fn spec_from(
+    name: &str,
+    dof: Option<u8>,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<FilterSpec> {
+    let mut spec =
+        FilterSpec::new(name).map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
+    if let Some(params) = params {
+        for (key, value) in params.iter() {
+            let key: String = key.extract()?;
+            if value.is_instance_of::<pyo3::types::PyString>() {
+                return Err(PyTypeError::new_err(format!(
+                    "{key}: expected a number, got a string"
+                )));
+            }
+            let v: f64 = value.extract().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "{key}: expected a number, got {}",
+                    value
+                        .get_type()
+                        .name()
+                        .map_or("?".into(), |n| n.to_string())
+                ))
+            })?;
+            // `{:?}` is the shortest text that parses back to the same f64.
+            spec.set(&format!("{key}={v:?}"))
+                .map_err(|e| PyValueError::new_err(format!("{key}: {e}")))?;
+        }
+    }
+    if let Some(d) = dof {
+        let d = Dof::from_count(d)
+            .ok_or_else(|| PyValueError::new_err(format!("dof: expected 6 or 9, got {d}")))?;
+        spec.set_dof(d)
+            .map_err(|e| PyValueError::new_err(format!("dof: {e}")))?;
+    }
+    Ok(spec)
+}
+
+/// The per-sample input of one channel over borrowed or owned `f64` slices (`[x, y, z]` rows).
+pub struct Inputs<'a> {
+    pub gyr: &'a [f64],
+    pub acc: &'a [f64],
+    pub mag: Option<&'a [f64]>,
+    pub steps: &'a Steps,
+    pub len: usize,
+}
+
+impl<'a> Inputs<'a> {
+    /// The input of arrays read by [`imu_arrays`] with their steps.
+    pub fn new(
+        gyr: &'a arrays::FloatArray<'_>,
+        acc: &'a arrays::FloatArray<'_>,
+        mag: Option<&'a arrays::FloatArray<'_>>,
+        steps: &'a Steps,
+        len: usize,
+    ) -> Self {
+        Self {
+            gyr: gyr.as_slice(),
+            acc: acc.as_slice(),
+            mag: mag.map(|m| m.as_slice()),
+            steps,
+            len,
+        }
+    }
+
+    #[inline]
+    pub fn sample(&self, i: usize) -> ImuSample<f64> {
+        let v = |a: &[f64]| Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
+        match self.mag {
+            Some(m) => ImuSample::new(v(self.gyr), v(self.acc), v(m)),
+            None => ImuSample::six_d(v(self.gyr), v(self.acc)),
+        }
+    }
+}
+
+impl rootfuse_batch::ChannelSource for Inputs<'_> {
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        Inputs::sample(self, i)
+    }
+    fn dt(&self, i: usize) -> f64 {
+        self.steps.at(i)
+    }
+}
+
+/// Lane 0's counters.
+fn totals<T: Lane>(r: &Rejections<T>) -> RejectionTotals {
+    RejectionTotals::of_lane(r, 0)
+}
+
+/// What `update_batch` collects, flat, C order.
+#[derive(Default)]
+struct Series {
+    quat: Vec<f64>,
+    bias: Vec<f64>,
+    cov: Vec<f64>,
+    flags: Vec<u8>,
+}
+
+#[inline]
+fn widen<T: Lane>(x: T) -> f64 {
+    x.extract(0).into()
+}
+
+/// One step of `filter` on sample `s` (converted to `T` by rounding once), returning its flags.
+#[inline]
+fn step<T: Lane>(filter: &mut AnyFilter<T>, s: &ImuSample<f64>, dt: f64) -> u8 {
+    let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
+    filter.update(
+        &ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
+        T::from_f64(dt),
+    );
+    filter.flags().bits(0)
+}
+
+/// The filter loop of `update_batch`, without the GIL.
+fn run_series<T: Lane>(filter: &mut AnyFilter<T>, input: &Inputs<'_>, with_cov: bool) -> Series {
+    let n = input.len;
+    let mut out = Series {
+        quat: Vec::with_capacity(4 * n),
+        bias: Vec::with_capacity(3 * n),
+        cov: Vec::with_capacity(if with_cov { 9 * n } else { 0 }),
+        flags: Vec::with_capacity(n),
+    };
+    for i in 0..n {
+        let f = step(filter, &input.sample(i), input.steps.at(i));
+        out.flags.push(f);
+        let q = filter.quat();
+        out.quat
+            .extend_from_slice(&[widen(q.w), widen(q.x), widen(q.y), widen(q.z)]);
+        let b = filter.bias();
+        out.bias
+            .extend_from_slice(&[widen(b.x), widen(b.y), widen(b.z)]);
+        if with_cov {
+            match filter.attitude_covariance() {
+                Some(p) => out.cov.extend(p.m.iter().flatten().map(|&x| widen(x))),
+                None => out.cov.extend([f64::NAN; 9]),
+            }
+        }
+    }
+    out
+}
+
+/// The filter in its precision. One per Python object, updated in place, so the size of the
+/// larger variant costs nothing worth a box.
+#[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
+enum State {
+    F32(AnyFilter<f32>),
+    F64(AnyFilter<f64>),
+}
+
+macro_rules! with_state {
+    ($state:expr, $f:ident => $body:expr) => {
+        match $state {
+            State::F32($f) => $body,
+            State::F64($f) => $body,
+        }
+    };
+}
+
+/// An orientation filter from the registry, by name, in f32 or f64.
+///
+/// `Filter(name, dof=None, precision="f64", **params)`: `name` is a registered filter
+/// (`filters()` lists them, with every parameter, its unit, default and range; `"flagship"`
+/// is `"sqrt-eskf"`); parameters are keyword arguments validated by the registry (a
+/// ValueError names the parameter and the accepted range); `dof` 6 (gyroscope and
+/// accelerometer) or 9 (with magnetometer; the default of filters that have the choice).
+///
+/// Conventions: quaternions `[w, x, y, z]`, sensor to earth, earth ENU; gyroscope rad/s,
+/// accelerometer m/s² (+g up at rest), magnetometer any consistent unit, time s.
+#[pyclass(module = "rootfuse._rootfuse")]
+pub struct Filter {
+    spec: FilterSpec,
+    state: State,
+}
+
+impl Filter {
+    fn build(spec: FilterSpec, precision: Precision) -> Self {
+        let state = match precision {
+            Precision::F32 => State::F32(spec.build()),
+            Precision::F64 => State::F64(spec.build()),
+        };
+        Self { spec, state }
+    }
+    fn has_covariance(&self) -> bool {
+        with_state!(&self.state, f => f.attitude_covariance().is_some())
+    }
+}
+
+/// Reads `gyr`, `acc`, `mag` as `(N, 3)` arrays of one length.
+pub fn imu_arrays<'py>(
+    gyr: &Bound<'py, PyAny>,
+    acc: &Bound<'py, PyAny>,
+    mag: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(
+    arrays::FloatArray<'py>,
+    arrays::FloatArray<'py>,
+    Option<arrays::FloatArray<'py>>,
+    usize,
+)> {
+    let (gyr, n) = matrix(gyr, "gyr", 3)?;
+    let (acc, na) = matrix(acc, "acc", 3)?;
+    same_length("acc", na, n)?;
+    let mag = match mag {
+        Some(m) if !m.is_none() => {
+            let (m, nm) = matrix(m, "mag", 3)?;
+            same_length("mag", nm, n)?;
+            Some(m)
+        }
+        _ => None,
+    };
+    Ok((gyr, acc, mag, n))
+}
+
+fn vec3_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
+    // The per-sample path: a plain sequence of three numbers is read directly, without
+    // building an error for the array path first.
+    if obj.cast::<numpy::PyUntypedArray>().is_err() {
+        return obj.extract::<[f64; 3]>().map_err(|_| {
+            let len = obj
+                .len()
+                .map_or(String::new(), |n| format!(", got {n} values"));
+            if obj.len().is_ok() && obj.extract::<Vec<f64>>().is_ok() {
+                PyValueError::new_err(format!("{name}: expected 3 values (x, y, z){len}"))
+            } else {
+                PyTypeError::new_err(format!("{name}: expected three numbers"))
+            }
+        });
+    }
+    let a = arrays::float_array(obj, name)?;
+    match a.as_slice() {
+        [x, y, z] if a.shape.len() == 1 => Ok([*x, *y, *z]),
+        _ => Err(PyValueError::new_err(format!(
+            "{name}: expected 3 values (x, y, z), got shape {:?}",
+            a.shape
+        ))),
+    }
+}
+
+fn quat_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 4]> {
+    let v: Vec<f64> = match arrays::float_array(obj, name) {
+        Ok(a) if a.shape.len() == 1 => a.into_vec(),
+        Ok(a) => {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected 4 values [w, x, y, z], got shape {:?}",
+                a.shape
+            )));
+        }
+        Err(_) => obj
+            .extract()
+            .map_err(|_| PyTypeError::new_err(format!("{name}: expected four numbers")))?,
+    };
+    match v.as_slice() {
+        [w, x, y, z] if v.iter().all(|c| c.is_finite()) && v.iter().any(|&c| c != 0.0) => {
+            Ok([*w, *x, *y, *z])
+        }
+        _ => Err(PyValueError::new_err(format!(
+            "{name}: expected 4 finite values [w, x, y, z], not all zero, got {v:?}"
+        ))),
+    }
+}
+
+#[pymethods]
+impl Filter {
+    #[new]
+    #[pyo3(signature = (name, *, dof=None, precision="f64", **params))]
+    fn new(
+        name: &str,
+        dof: Option<u8>,
+        precision: &str,
+        params: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let spec = spec_from(name, dof, params)?;
+        Ok(Self::build(spec, self::precision(precision)?))
+    }
+
+    /// The registered name of the filter (`"flagship"` gives `"sqrt-eskf"`).
+    #[getter]
+    fn name(&self) -> &'static str {
+        self.spec.kind().name()
+    }
+
+    /// `"f32"` or `"f64"`.
+    #[getter]
+    fn precision(&self) -> &'static str {
+        match self.state {
+            State::F32(_) => "f32",
+            State::F64(_) => "f64",
+        }
+    }
+
+    /// 6 or 9 (None for `gyro`, which never reads the magnetometer).
+    #[getter]
+    fn dof(&self) -> Option<u8> {
+        self.spec.dof().map(Dof::count)
+    }
+
+    /// Every parameter's current value, `{name: value}` (units: see `filters()`).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in self.spec.kind().params() {
+            if let Some(v) = self.spec.get(p.name) {
+                d.set_item(p.name, v)?;
+            }
+        }
+        Ok(d)
+    }
+
+    /// Processes whole arrays from the current state, with the GIL released.
+    ///
+    /// gyr, acc, mag: `(N, 3)` float32/float64 arrays (rad/s, m/s², any unit); `mag=None`
+    /// for 6D data (a 9D filter then skips its magnetometer correction at every sample and
+    /// flags it). Exactly one of `dt` (s: a number, or `(N,)` per sample: the step before
+    /// each sample) and `t` (s, `(N,)`: the step before sample i is `t[i] − t[i−1]`, before
+    /// sample 0 `t[1] − t[0]`, as `rootfuse run` does). Input is rounded to the filter's
+    /// precision once.
+    ///
+    /// Returns a dict of float64 arrays: `quat` `(N, 4)` `[w, x, y, z]` after each sample;
+    /// `bias` `(N, 3)` gyro-bias estimate, rad/s (zeros for filters without one);
+    /// `covariance` `(N, 3, 3)` attitude-error covariance, rad², earth frame (only for filters
+    /// that carry one: `sqrt-eskf`, `ekf`, ...); `flags` `(N,)` uint8 per sample: 1 dt, 2
+    /// gyroscope (whole sample skipped), 4 accelerometer, 8 magnetometer (correction
+    /// skipped), 16 gated by the filter, 32 at rest, 64 magnetic disturbance. NaN/inf inside
+    /// the arrays are not errors: that sample (or correction) is skipped and flagged.
+    #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None))]
+    fn update_batch<'py>(
+        &mut self,
+        py: Python<'py>,
+        gyr: &Bound<'py, PyAny>,
+        acc: &Bound<'py, PyAny>,
+        mag: Option<&Bound<'py, PyAny>>,
+        dt: Option<&Bound<'py, PyAny>>,
+        t: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
+        let steps = Steps::parse(dt, t, n)?;
+        let with_cov = self.has_covariance();
+        let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
+        let state = &mut self.state;
+        let series = py.detach(|| with_state!(state, f => run_series(f, &input, with_cov)));
+        let out = PyDict::new(py);
+        out.set_item("quat", PyArray1::from_vec(py, series.quat).reshape([n, 4])?)?;
+        out.set_item("bias", PyArray1::from_vec(py, series.bias).reshape([n, 3])?)?;
+        if with_cov {
+            out.set_item(
+                "covariance",
+                PyArray1::from_vec(py, series.cov).reshape([n, 3, 3])?,
+            )?;
+        }
+        out.set_item("flags", PyArray1::from_vec(py, series.flags))?;
+        Ok(out)
+    }
+
+    /// One sample: gyr, acc (and mag for 9D) as 3 numbers each (rad/s, m/s², any unit), dt
+    /// the step before it, s. Returns the sample's flags (bits as in `update_batch`); the
+    /// state is in `quat`, `bias`, `covariance`. NaN/inf values are skipped and flagged.
+    #[pyo3(signature = (gyr, acc, mag=None, *, dt))]
+    fn update(
+        &mut self,
+        gyr: &Bound<'_, PyAny>,
+        acc: &Bound<'_, PyAny>,
+        mag: Option<&Bound<'_, PyAny>>,
+        dt: f64,
+    ) -> PyResult<u8> {
+        let g = vec3_arg(gyr, "gyr")?;
+        let a = vec3_arg(acc, "acc")?;
+        let s = match mag {
+            Some(m) if !m.is_none() => {
+                let m = vec3_arg(m, "mag")?;
+                ImuSample::new(Vec3::from_f64(g), Vec3::from_f64(a), Vec3::from_f64(m))
+            }
+            _ => ImuSample::six_d(Vec3::from_f64(g), Vec3::from_f64(a)),
+        };
+        Ok(with_state!(&mut self.state, f => step(f, &s, dt)))
+    }
+
+    /// Current orientation `[w, x, y, z]` (sensor to earth, ENU), float64 `(4,)`.
+    #[getter]
+    fn quat<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        let q = with_state!(&self.state, f => {
+            let q = f.quat();
+            [widen(q.w), widen(q.x), widen(q.y), widen(q.z)]
+        });
+        PyArray1::from_slice(py, &q)
+    }
+
+    /// Current gyro-bias estimate, rad/s, float64 `(3,)` (zeros for filters without one).
+    #[getter]
+    fn bias<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        let b = with_state!(&self.state, f => {
+            let b = f.bias();
+            [widen(b.x), widen(b.y), widen(b.z)]
+        });
+        PyArray1::from_slice(py, &b)
+    }
+
+    /// Current attitude-error covariance, rad², earth frame ENU (`[2, 2]` is heading),
+    /// float64 `(3, 3)`; None for filters without one.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray2<f64>>> {
+        let p = with_state!(&self.state, f => f
+            .attitude_covariance()
+            .map(|p| p.m.iter().flatten().map(|&x| widen(x)).collect::<Vec<f64>>()))?;
+        let a = Array2::from_shape_vec((3, 3), p).ok()?;
+        Some(numpy::IntoPyArray::into_pyarray(a, py))
+    }
+
+    /// What was skipped since the filter was built or reset, by reason:
+    /// `{"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}` counts.
+    #[getter]
+    fn rejections<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let r = with_state!(&self.state, f => totals(f.rejections()));
+        rejections_dict(py, &r)
+    }
+
+    /// Sets the orientation `[w, x, y, z]` (sensor to earth, ENU; normalised by the filter)
+    /// and marks the filter initialised: the next samples correct from there instead of
+    /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
+    fn set_quat(&mut self, q: &Bound<'_, PyAny>) -> PyResult<()> {
+        let q = quat_arg(q, "q")?;
+        with_state!(&mut self.state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
+        Ok(())
+    }
+
+    /// Sets the gyro-bias estimate, rad/s (sensor frame, 3 numbers). Returns False (and
+    /// changes nothing) for filters without a bias estimate.
+    fn set_bias(&mut self, bias: &Bound<'_, PyAny>) -> PyResult<bool> {
+        let b = vec3_arg(bias, "bias")?;
+        if !b.iter().all(|x| x.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "bias: expected finite values, got {b:?}"
+            )));
+        }
+        Ok(with_state!(&mut self.state, f => f.set_bias(Vec3::from_f64(b))))
+    }
+
+    /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
+    /// from north) becomes `heading`; the inclination is kept.
+    fn set_heading(&mut self, heading: f64) -> PyResult<()> {
+        if !heading.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "heading: expected a finite angle in rad, got {heading}"
+            )));
+        }
+        with_state!(&mut self.state, f => f.set_heading(Lane::from_f64(heading)));
+        Ok(())
+    }
+
+    /// Back to the state just after construction (same parameters and precision).
+    fn reset(&mut self) {
+        self.state = match self.state {
+            State::F32(_) => State::F32(self.spec.build()),
+            State::F64(_) => State::F64(self.spec.build()),
+        };
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Filter({:?}, dof={}, precision={:?})",
+            self.name(),
+            self.dof().map_or("None".into(), |d| d.to_string()),
+            self.precision()
+        )
+    }
+}
+
+/// The counters as a dict.
+pub fn rejections_dict<'py>(py: Python<'py>, r: &RejectionTotals) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("dt", r.dt)?;
+    d.set_item("gyr", r.gyr)?;
+    d.set_item("acc", r.acc)?;
+    d.set_item("mag", r.mag)?;
+    d.set_item("gated", r.gated)?;
+    d.set_item("mag_disturbed", r.mag_disturbed)?;
+    Ok(d)
+}
+
+/// Every registered filter: a list of dicts `{"name", "description", "params": [{"name",
+/// "kind", "default", "unit", "min", "max", "doc"}]}`.
+#[pyfunction]
+pub fn filters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let out = PyList::empty(py);
+    for kind in FilterKind::ALL {
+        let d = PyDict::new(py);
+        d.set_item("name", kind.name())?;
+        d.set_item("description", kind.description())?;
+        let params = PyList::empty(py);
+        for p in kind.params() {
+            let pd = PyDict::new(py);
+            pd.set_item("name", p.name)?;
+            pd.set_item("kind", p.kind.describe())?;
+            pd.set_item("default", p.default)?;
+            pd.set_item("unit", p.unit)?;
+            pd.set_item("min", p.min)?;
+            pd.set_item("max", p.max)?;
+            pd.set_item("doc", p.doc)?;
+            params.append(pd)?;
+        }
+        d.set_item("params", params)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// A `Recording` from arrays (what the smoother, metrics and writer take).
+pub fn recording(
+    input: &Inputs<'_>,
+    t: Vec<f64>,
+    truth: Option<Vec<f64>>,
+    use_mask: Option<Vec<bool>>,
+) -> Recording {
+    let n = input.len;
+    let v3 = |a: &[f64]| -> Vec<Vec3<f64>> {
+        (0..n)
+            .map(|i| Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2]))
+            .collect()
+    };
+    Recording {
+        name: "python".into(),
+        t,
+        gyr: v3(input.gyr),
+        acc: v3(input.acc),
+        mag: input.mag.map(v3),
+        truth: truth.map(|q| {
+            q.chunks_exact(4)
+                .map(|c| rootfuse_attitude::Quat::new(c[0], c[1], c[2], c[3]))
+                .collect()
+        }),
+        use_mask,
+    }
+}
+
+/// Offline forward-backward smoothing of one recording (f64), for filters with an attitude
+/// covariance (`sqrt-eskf`/`flagship`, `ekf`).
+///
+/// gyr, acc, mag (or None): `(N, 3)`; `t` sample times, s `(N,)` (or `dt`, a fixed step:
+/// times `k·dt`; the smoother reads steps as differences of times, like `rootfuse run
+/// --offline`). Returns `{"quat": (N, 4), "forward_only": int}`: `forward_only` counts the
+/// samples where fusion was impossible and the forward estimate was kept.
+#[pyfunction]
+#[pyo3(signature = (name, gyr, acc, mag=None, *, t=None, dt=None, dof=None, **params))]
+#[allow(clippy::too_many_arguments)]
+pub fn smooth<'py>(
+    py: Python<'py>,
+    name: &str,
+    gyr: &Bound<'py, PyAny>,
+    acc: &Bound<'py, PyAny>,
+    mag: Option<&Bound<'py, PyAny>>,
+    t: Option<&Bound<'py, PyAny>>,
+    dt: Option<&Bound<'py, PyAny>>,
+    dof: Option<u8>,
+    params: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let spec = spec_from(name, dof, params)?;
+    let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
+    let steps = Steps::parse(dt, t, n)?;
+    if let Steps::PerSample(_) = steps {
+        return Err(PyValueError::new_err(
+            "dt: the smoother takes sample times t (s, shape (N,)) or a fixed step dt (a number), not per-sample steps",
+        ));
+    }
+    let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
+    let rec = recording(&input, steps.times(n), None, None);
+    let nine_d = spec.uses_magnetometer();
+    let result = py.detach(|| {
+        rootfuse_attitude::smooth::forward_backward(&rec, || spec.build::<f64>(), nine_d)
+    });
+    let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
+    let q: Vec<f64> = smoothed
+        .quat
+        .iter()
+        .flat_map(|q| [q.w, q.x, q.y, q.z])
+        .collect();
+    let out = PyDict::new(py);
+    out.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
+    out.set_item("forward_only", smoothed.forward_only)?;
+    Ok(out)
+}

@@ -1,0 +1,188 @@
+"""Filters from Python equal the Rust library bit for bit (compared with `rootfuse run`
+output, which writes shortest round-trip numbers), and the state API works."""
+
+import csv
+import subprocess
+
+import numpy as np
+import pytest
+
+import rootfuse as rf
+
+NAMES = [f["name"] for f in rf.filters()]
+
+
+def read_cli_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    cols = {h: np.array([float(r[i]) for r in body]) for i, h in enumerate(header)}
+    return cols
+
+
+def sim_with_bad_samples(tmp_path, dof=9):
+    rec = rf.simulate("fast-rotation", seed=3, duration_s=4.0, rate_hz=100.0)
+    gyr, acc = rec["gyr"].copy(), rec["acc"].copy()
+    mag = rec["mag"].copy() if rec["mag"] is not None else None
+    # The CSV reader refuses non-finite values, so the bad samples here are finite ones the
+    # filters skip (NaN/inf are covered in test_errors.py).
+    gyr[10, 1] = 1e6          # saturated gyroscope, whole sample skipped: flag 2
+    acc[20, :] = 0.0          # accelerometer correction skipped: flag 4
+    if mag is not None:
+        mag[30, :] = 0.0      # magnetometer correction skipped: flag 8
+    path = tmp_path / "sim.csv"
+    rf.write_recording(path, rec["t"], gyr, acc, mag, truth=rec["truth"], use=rec["use"])
+    return path
+
+
+def run_cli(cli, path, out, name, precision, dof, extra=()):
+    cmd = [cli, "run", str(path), "--filter", name, "--precision", precision, "--out", str(out)]
+    if dof is not None:
+        cmd += ["--dof", str(dof)]
+    cmd += list(extra)
+    subprocess.run(cmd, check=True, capture_output=True)
+    return read_cli_csv(out / f"{path.stem}.csv")
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_update_batch_equals_rust_bit_for_bit(cli, tmp_path, name, precision):
+    path = sim_with_bad_samples(tmp_path)
+    dof = None if name == "gyro" else 9
+    f = rf.Filter(name, dof=dof, precision=precision)
+    has_cov = f.covariance is not None
+    extra = ["--bias", "--flags"] + (["--covariance"] if has_cov else [])
+    ref = run_cli(cli, path, tmp_path / "out", name, precision, dof, extra)
+    rec = rf.read_csv(path)
+    out = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
+    for k, col in enumerate(["qw", "qx", "qy", "qz"]):
+        np.testing.assert_array_equal(out["quat"][:, k], ref[col], err_msg=f"{name} {precision} {col}")
+    for k, col in enumerate(["bx", "by", "bz"]):
+        np.testing.assert_array_equal(out["bias"][:, k], ref[col])
+    np.testing.assert_array_equal(out["flags"], ref["flags"].astype(np.uint8))
+    assert out["flags"][10] & rf.FLAG_GYR
+    assert out["flags"][20] & rf.FLAG_ACC
+    if has_cov:
+        p = out["covariance"]
+        for col, (r, c) in zip(["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"],
+                               [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]):
+            np.testing.assert_array_equal(p[:, r, c], ref[col])
+    else:
+        assert "covariance" not in out
+
+
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+@pytest.mark.parametrize("dof", [6, 9])
+def test_flagship_on_broad_equals_rust(cli, broad_dir, tmp_path, precision, dof):
+    path = sorted(broad_dir.glob("02_*.csv"))[0]
+    ref = run_cli(cli, path, tmp_path, "flagship", precision, dof, ["--flags"])
+    rec = rf.read_csv(path)
+    out = rf.Filter("flagship", dof=dof, precision=precision).update_batch(rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
+    np.testing.assert_array_equal(out["quat"], np.stack([ref[c] for c in ["qw", "qx", "qy", "qz"]], axis=1))
+    np.testing.assert_array_equal(out["flags"], ref["flags"].astype(np.uint8))
+
+
+def test_smooth_equals_rust_offline(cli, tmp_path):
+    path = sim_with_bad_samples(tmp_path)
+    ref = run_cli(cli, path, tmp_path / "out", "sqrt-eskf", "f64", 9, ["--offline"])
+    rec = rf.read_csv(path)
+    out = rf.smooth("sqrt-eskf", rec["gyr"], rec["acc"], rec["mag"], t=rec["t"], dof=9)
+    np.testing.assert_array_equal(out["quat"], np.stack([ref[c] for c in ["qw", "qx", "qy", "qz"]], axis=1))
+    assert out["forward_only"] >= 0
+
+
+def test_parameters_reach_the_filter(cli, tmp_path):
+    path = sim_with_bad_samples(tmp_path)
+    ref = run_cli(cli, path, tmp_path / "out", "mahony", "f64", 6, ["--param", "kp=0.8"])
+    rec = rf.read_csv(path)
+    f = rf.Filter("mahony", dof=6, kp=0.8)
+    assert f.params["kp"] == 0.8 and f.dof == 6
+    out = f.update_batch(rec["gyr"], rec["acc"], None, t=rec["t"])
+    np.testing.assert_array_equal(out["quat"][:, 0], ref["qw"])
+    default = rf.Filter("mahony", dof=6).update_batch(rec["gyr"], rec["acc"], None, t=rec["t"])
+    assert not np.array_equal(default["quat"], out["quat"])
+
+
+def test_update_one_sample_equals_batch():
+    rec = rf.simulate("slow-rotation", seed=1, duration_s=2.0)
+    a = rf.Filter("sqrt-eskf", precision="f32")
+    b = rf.Filter("sqrt-eskf", precision="f32")
+    batch = a.update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)
+    for i in range(len(rec["t"])):
+        flags = b.update(rec["gyr"][i], rec["acc"][i], rec["mag"][i], dt=0.01)
+        assert flags == batch["flags"][i]
+    np.testing.assert_array_equal(b.quat, batch["quat"][-1])
+    np.testing.assert_array_equal(b.bias, batch["bias"][-1])
+    np.testing.assert_array_equal(b.covariance, batch["covariance"][-1])
+    assert b.quat.shape == (4,) and b.bias.shape == (3,) and b.covariance.shape == (3, 3)
+    assert set(b.rejections) == {"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}
+    # update accepts plain sequences too
+    b.update([0.0, 0.0, 0.0], [0.0, 0.0, 9.81], None, dt=0.01)
+
+
+def test_reset_rebuilds_from_spec():
+    rec = rf.simulate("slow-rotation", seed=2, duration_s=1.0)
+    f = rf.Filter("madgwick", precision="f64", beta=0.1)
+    first = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)["quat"]
+    second = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)["quat"]
+    assert not np.array_equal(first, second)  # continues from the state
+    f.reset()
+    again = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)["quat"]
+    np.testing.assert_array_equal(first, again)
+    assert f.params["beta"] == 0.1
+
+
+def test_dt_forms_agree():
+    rec = rf.simulate("slow-rotation", seed=4, duration_s=1.0, rate_hz=100.0)
+    n = len(rec["t"])
+    f = rf.Filter("mahony")
+    a = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)
+    f.reset()
+    b = f.update_batch(rec["gyr"], rec["acc"], rec["mag"], np.full(n, 0.01))
+    np.testing.assert_array_equal(a["quat"], b["quat"])
+    # float32 input is widened exactly
+    f.reset()
+    c = f.update_batch(rec["gyr"].astype(np.float32), rec["acc"].astype(np.float32), rec["mag"].astype(np.float32), 0.01)
+    assert c["quat"].shape == (n, 4)
+
+
+def test_filters_listing_has_units():
+    listing = rf.filters()
+    assert {"sqrt-eskf", "mahony", "madgwick", "ekf", "gyro"} <= {f["name"] for f in listing}
+    for f in listing:
+        for p in f["params"]:
+            assert {"name", "kind", "default", "unit", "min", "max", "doc"} <= set(p)
+    assert rf.Filter("flagship").name == "sqrt-eskf"
+    assert "Filter(" in repr(rf.Filter("gyro"))
+    assert rf.Filter("gyro").dof is None
+
+
+def test_build_info():
+    info = rf.build_info()
+    assert info["missing"] == []
+    assert isinstance(info["compiled"], list)
+
+
+def test_state_control():
+    f = rf.Filter("sqrt-eskf", dof=6)
+    a = np.radians(30.0)
+    q = np.array([np.cos(a / 2), np.sin(a / 2), 0.0, 0.0])  # 30° roll
+    f.set_quat(q * 2.0)  # normalised by the filter
+    np.testing.assert_allclose(f.quat, q, atol=1e-12)
+    # started from the set orientation, not from the accelerometer's
+    g = np.zeros((1, 3)); acc = np.array([[0.0, 9.81 * np.sin(a), 9.81 * np.cos(a)]])
+    f.update_batch(g, acc, None, 0.01)
+    assert abs(np.degrees(2 * np.arccos(min(1.0, abs(float(f.quat @ q)))))) < 1.0
+    f.set_heading(np.radians(90.0))
+    w, x, y, z = f.quat
+    heading = np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    assert heading == pytest.approx(90.0, abs=1e-6)
+    assert f.set_bias([0.01, -0.02, 0.0])
+    np.testing.assert_allclose(f.bias, [0.01, -0.02, 0.0], atol=1e-12)
+    assert not rf.Filter("complementary").set_bias([0.1, 0.0, 0.0])  # no bias estimate
+    with pytest.raises(ValueError, match="q: expected 4 finite values"):
+        f.set_quat([0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="bias: expected finite values"):
+        f.set_bias([np.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match="heading: expected a finite angle"):
+        f.set_heading(float("inf"))

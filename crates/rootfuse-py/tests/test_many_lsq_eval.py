@@ -1,0 +1,194 @@
+"""Many channels, least squares, metrics, simulator and recordings: every public function at
+least once, with results checked against single-channel runs, closed forms or the Rust CLI."""
+
+import numpy as np
+import pytest
+
+import rootfuse as rf
+
+
+def sims(count, duration_s=1.0):
+    return [rf.simulate("slow-rotation", seed=s, duration_s=duration_s, rate_hz=100.0) for s in range(count)]
+
+
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_run_many_stacked_equals_single_channels(precision):
+    recs = sims(11)  # not a multiple of the lane width
+    gyr = np.stack([r["gyr"] for r in recs])
+    acc = np.stack([r["acc"] for r in recs])
+    mag = np.stack([r["mag"] for r in recs])
+    gyr[3, 7] = np.nan
+    out = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, precision=precision, covariance=True)
+    assert out["quat"].shape == (11, 101, 4) or out["quat"].shape[:2] == gyr.shape[:2]
+    for c in range(11):
+        single = rf.Filter("sqrt-eskf", precision=precision).update_batch(gyr[c], acc[c], mag[c], 0.01)
+        np.testing.assert_array_equal(out["quat"][c], single["quat"])
+        np.testing.assert_array_equal(out["bias"][c], single["bias"])
+        np.testing.assert_array_equal(out["covariance"][c], single["covariance"])
+        np.testing.assert_array_equal(out["flags"][c], single["flags"])
+    assert out["flags"][3, 7] & rf.FLAG_GYR
+    assert out["rejections"][3]["gyr"] == 1
+
+
+def test_run_many_lists_of_different_lengths_and_channel_params():
+    recs = [rf.simulate("fast-rotation", seed=s, duration_s=0.5 + 0.25 * s) for s in range(5)]
+    params = [{"kp": 0.5 + 0.1 * c} for c in range(5)]
+    out = rf.run_many("mahony", [r["gyr"] for r in recs], [r["acc"] for r in recs], [r["mag"] for r in recs],
+                      t=[r["t"] for r in recs], precision="f64", channel_params=params, ki=0.01)
+    assert isinstance(out, list) and len(out) == 5
+    for c, r in enumerate(recs):
+        single = rf.Filter("mahony", kp=params[c]["kp"], ki=0.01).update_batch(r["gyr"], r["acc"], r["mag"], t=r["t"])
+        assert out[c]["quat"].shape == (len(r["t"]), 4)
+        np.testing.assert_array_equal(out[c]["quat"], single["quat"])
+        np.testing.assert_array_equal(out[c]["flags"], single["flags"])
+
+
+def test_run_many_final_states_only():
+    recs = sims(9)
+    gyr = np.stack([r["gyr"] for r in recs]); acc = np.stack([r["acc"] for r in recs])
+    dt = np.full(gyr.shape[:2], 0.01)
+    full = rf.run_many("madgwick", gyr, acc, None, dt, dof=6)
+    final = rf.run_many("madgwick", gyr, acc, None, dt, dof=6, series=False,
+                        channel_params=[{"beta": 0.1}] * 9)
+    assert final["quat"].shape == (9, 4)
+    other = rf.run_many("madgwick", gyr, acc, None, dt, dof=6, series=False, beta=0.1)
+    np.testing.assert_array_equal(final["quat"], other["quat"])
+    plain = rf.run_many("madgwick", gyr, acc, None, dt, dof=6, series=False)
+    np.testing.assert_array_equal(plain["quat"], full["quat"][:, -1])
+    np.testing.assert_array_equal(plain["bias"], full["bias"][:, -1])
+
+
+@pytest.mark.parametrize("form", rf.rls_forms())
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_rls_fits_a_line(form, precision):
+    t = np.linspace(0.0, 1.0, 200)
+    h = np.stack([np.ones_like(t), t], axis=1)
+    z = 2.0 + 3.0 * t
+    r = rf.Rls(form, 2, p0=1e4, precision=precision)
+    out = r.run(h, z)
+    # closed form of the same problem: prior x0 = 0, P0 = 1e4 I
+    exact = np.linalg.solve(np.eye(2) / 1e4 + h.T @ h, h.T @ z)
+    tol = 1e-3 if precision == "f32" else 1e-9
+    np.testing.assert_allclose(out["estimate"][-1], exact, atol=tol)
+    np.testing.assert_allclose(out["estimate"][-1], [2.0, 3.0], atol=1e-3)
+    assert out["estimate"].shape == (200, 2) and out["accepted"].all()
+    assert not out["lost_definiteness"].any()
+    np.testing.assert_array_equal(r.estimate, out["estimate"][-1])
+    assert r.covariance.shape == (2, 2) and r.health["accepted"] == 200
+    assert r.form == form and r.n == 2 and r.precision == precision and form in repr(r)
+    # sample by sample gives the same bits as the array run
+    s = rf.Rls(form, 2, p0=1e4, precision=precision)
+    for i in range(200):
+        assert s.update(h[i], z[i], 1.0)
+    np.testing.assert_array_equal(s.estimate, r.estimate)
+
+
+def test_rls_forgetting_bounds_and_every_size():
+    for n in range(1, 9):
+        r = rf.Rls("inverse-qr", n, lam=0.99, p0=1e3, p_min=1e-6, p_max=1e3)
+        h = np.random.default_rng(n).standard_normal((300, n))
+        x = np.arange(1.0, n + 1.0)
+        out = r.run(h, h @ x, 1.0)
+        # the prior's weight has decayed to 0.99^300 / 1e3 and the upper bound adds about
+        # 1/p_max of information, against about 100 from the data
+        np.testing.assert_allclose(out["estimate"][-1], x, rtol=1e-4)
+    # windup: only the first regressor excited; the bound keeps P below p_max
+    r = rf.Rls("bierman-ud", 2, lam=0.9, p0=1.0, p_min=0.0, p_max=10.0)
+    r.run(np.tile([1.0, 0.0], (500, 1)), np.ones(500))
+    assert np.linalg.eigvalsh(r.covariance).max() <= 10.0 * (1 + 1e-9)
+    r2 = rf.Rls("information-qr", 2, x0=np.array([1.0, 1.0]), p0=np.eye(2), compensated=False)
+    assert r2.estimate.tolist() == [1.0, 1.0]
+
+
+def test_conventional_form_flags_its_failure_in_f32():
+    # Dyer-McReynolds, delta = 1e-4 in f32: the covariance forms lose definiteness and say so
+    d = 1e-4
+    rows = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 1.0 + d]] * 3)
+    for form in ("conventional", "potter"):
+        r = rf.Rls(form, 3, p0=1.0, precision="f32")
+        out = r.run(rows, np.zeros(len(rows)), 1.0 / d**2)
+        if form == "conventional":
+            assert out["lost_definiteness"].any() or not out["accepted"].all()
+        else:
+            assert out["accepted"].all() and (out["min_pivot"] > 0).all()
+
+
+@pytest.mark.parametrize("method", ["qr", "pivoted-qr", "svd", "normal-equations"])
+def test_lstsq_methods(method):
+    rng = np.random.default_rng(0)
+    h = rng.standard_normal((50, 3))
+    x = np.array([1.0, -2.0, 0.5])
+    z = h @ x + 1e-3 * rng.standard_normal(50)
+    sol = rf.lstsq(h, z, method=method)
+    ref = np.linalg.lstsq(h, z, rcond=None)[0]
+    np.testing.assert_allclose(sol["estimate"], ref, rtol=1e-10)
+    assert sol["rank"] == 3 and sol["dof"] == 47 and sol["covariance"].shape == (3, 3)
+    w = rng.uniform(0.5, 2.0, 50)
+    sw = rf.lstsq(h, z, weights=w, method=method)
+    refw = np.linalg.lstsq(h * np.sqrt(w)[:, None], z * np.sqrt(w), rcond=None)[0]
+    np.testing.assert_allclose(sw["estimate"], refw, rtol=1e-10)
+    sc = rf.lstsq(h, z, covariance=np.diag(1.0 / w), method=method)
+    np.testing.assert_allclose(sc["estimate"], refw, rtol=1e-10)
+    s32 = rf.lstsq(h, z, method=method, precision="f32")
+    np.testing.assert_allclose(s32["estimate"], ref, rtol=1e-4)
+
+
+def test_lstsq_normal_equations_report_breakdown():
+    # Läuchli: H^T H is singular in f64 for eps = 1e-9; QR solves it, normal equations say so
+    e = 1e-9
+    h = np.array([[1.0, 1.0], [e, 0.0], [0.0, e]])
+    z = np.array([2.0, e, e])
+    np.testing.assert_allclose(rf.lstsq(h, z, method="qr")["estimate"], [1.0, 1.0], rtol=1e-6)
+    with pytest.raises(ValueError, match="normal equations"):
+        rf.lstsq(h, z, method="normal-equations")
+    sol = rf.lstsq(np.ones((4, 2)), np.ones(4), method="pivoted-qr")
+    assert sol["rank"] == 1
+
+
+def test_stress_rows():
+    assert "dyer-mcreynolds" in rf.stress_scenarios()
+    rows = rf.stress("dyer-mcreynolds", scale=0.01)
+    assert {r["form"] for r in rows} == set(rf.rls_forms())
+    assert {r["precision"] for r in rows} == {"f32", "f64"}
+    for r in rows:
+        assert set(r) >= {"scenario", "param", "steps", "max_rel_err", "pd_lost_at", "nan_at", "detected", "ns_per_update", "trace"}
+    # f32, delta = 1e-4: the conventional form is flagged, Bierman U-D is accurate (the README table)
+    pick = {(r["form"], r["precision"], r["param"]): r for r in rows}
+    assert pick[("conventional", "f32", 1e-4)]["detected"]
+    assert pick[("bierman-ud", "f32", 1e-4)]["max_rel_err"] < 1e-2
+
+
+def test_metrics_closed_forms():
+    n = 100
+    truth = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    a = np.radians(10.0)
+    est = np.tile([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)], (n, 1))  # 10° heading error
+    r9 = rf.rmse(est, truth)
+    assert r9["total"] == pytest.approx(10.0) and r9["heading"] == pytest.approx(10.0)
+    assert r9["inclination"] == pytest.approx(0.0, abs=1e-9) and r9["n_used"] == n
+    r6 = rf.rmse(est, truth, dof=6)  # constant heading offset removed
+    assert r6["total"] == pytest.approx(0.0, abs=1e-9) and r6["heading_offset"] == pytest.approx(10.0)
+    assert rf.heading_offset(est, truth) == pytest.approx(10.0)
+    use = np.zeros(n, dtype=bool); use[:10] = True
+    assert rf.rmse(est, truth, use=use)["n_used"] == 10
+    s = rf.error_series(est, truth, dof=9)
+    np.testing.assert_allclose(s["total"], 10.0)
+    assert s["used"].all()
+
+
+def test_simulator_and_recordings_roundtrip(tmp_path):
+    assert "static" in rf.scenario_names()
+    rec = rf.simulate("translation", seed=7, duration_s=2.0, rate_hz=50.0)
+    assert rec["gyr"].shape == (100, 3) and rec["truth"].shape == (100, 4)
+    path = tmp_path / "rec.csv"
+    rf.write_recording(path, rec["t"], rec["gyr"], rec["acc"], rec["mag"], truth=rec["truth"], use=rec["use"])
+    back = rf.read_csv(path)
+    for k in ("t", "gyr", "acc", "mag", "truth", "use"):
+        np.testing.assert_array_equal(back[k], rec[k])
+    est = rf.Filter("sqrt-eskf").update_batch(back["gyr"], back["acc"], back["mag"], t=back["t"])
+    out = tmp_path / "est.csv"
+    rf.write_estimates(out, back["t"], est["quat"], {"flags": est["flags"].astype(float)})
+    again = rf.read_estimates(out)
+    np.testing.assert_array_equal(again["quat"], est["quat"])
+    np.testing.assert_array_equal(again["t"], back["t"])
+    assert rf.rmse(est["quat"], back["truth"], use=back["use"])["total"] < 10.0
