@@ -1,5 +1,5 @@
 //! Least squares: the six recursive forms (`rootfuse_lsq::rls`) sample by sample and over
-//! whole arrays, the dense weighted solvers (`rootfuse_lsq::batch`) and the stress scenarios.
+//! whole arrays, the dense weighted solvers (`rootfuse_lsq::dense`) and the stress scenarios.
 
 use crate::arrays::{float_array, square, vector};
 use crate::filter::precision;
@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use rootfuse_batch::Precision;
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
-use rootfuse_lsq::batch::{self, LsqReal, Method, Options, Weights, faer};
+use rootfuse_lsq::dense::{self, LsqReal, Method, Options, Weights, faer};
 use rootfuse_lsq::rls::{
     BiermanUd, Conventional, InformationQr, InverseQr, Joseph, Potter, RecursiveLeastSquares,
     RlsConfig,
@@ -447,7 +447,7 @@ fn solve_typed<'py, T: LsqReal>(
         }
     };
     let sol = py
-        .detach(|| batch::solve(hm.as_ref(), zc.as_ref(), weights, &options))
+        .detach(|| dense::solve(hm.as_ref(), zc.as_ref(), weights, &options))
         .map_err(|e| PyValueError::new_err(format!("lstsq: {e}")))?;
     let f = |x: T| -> f64 { LsqReal::to_f64(x) };
     let d = PyDict::new(py);
