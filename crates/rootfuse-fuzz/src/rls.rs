@@ -300,7 +300,10 @@ fn run<T, F, const N: usize>(
             // Plus the contraction of an excess by the exact regularised forgetting (an
             // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
             let covariance_form = matches!(name, "conventional" | "joseph");
-            let (loss, contracted) = if covariance_form || name == "potter" {
+            // Inverse QR rotates the same `S̃ = S/√λ_s` that Potter updates, so it rounds at
+            // the same scale (found: f32, λ = 1.2e-25, p_max = 100 ended 4.9e-5 relative above).
+            let square_root_factor = matches!(name, "potter" | "inverse-qr");
+            let (loss, contracted) = if covariance_form || square_root_factor {
                 let reg = (1.0 - lambda_step) / b.p_max;
                 let large = b.p_max.max(p_norm);
                 let loss: f64 = rows
@@ -317,7 +320,7 @@ fn run<T, F, const N: usize>(
                             }
                     })
                     .sum();
-                // Potter's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
+                // The square-root factor's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
                 // which dominates once λ ≲ u² (found: λ = 1.5e-47, P₀ = 1e-3·I, p_max = 100
                 // ended at 1.1e12, about (u·‖S/√λ‖)²).
                 let factor_rounding: f64 = if covariance_form {

@@ -94,36 +94,38 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// relative slack of about `n·u·κ(P)` on the covariance formed from it, which is a few units
 /// of roundoff times `n` for a well-conditioned `P`). Requires `n·p_min < p_max`.
 ///
-/// # The covariance forms and Potter at extreme forgetting
+/// # The covariance forms and the square-root covariance forms at extreme forgetting
 /// The conventional and Joseph forms subtract from `P̃ = P/λ_s` itself (`λ_s` the step's
 /// forgetting factor: `λ`, or 1 when not forgetting), so every row of an update — the
 /// measurement rows and, when forgetting, the `n` regularising pseudo-rows
 /// (`w‖h‖² = (1 − λ)/p_max`) — rounds at `P̃`'s scale, and a row with
 /// `α = 1 + w·hᵀP̃h` also loses about `u·α` relative at the result's scale (`u` the unit
-/// roundoff). Potter's square factor rounds at `S̃ = S/√λ_s`'s scale, which is `√(L·‖P‖/λ_s)`
-/// in `P`, and loses `u·√α`. With `‖P‖` the size of the `P` the update started from and
-/// `L = max(p_max, ‖P‖)`, per update:
+/// roundoff). Potter and inverse QR both work on the square factor `S̃ = S/√λ_s` (Potter by a
+/// rank-one correction, inverse QR by Givens rotations of the prearray), so both round at its
+/// scale, which is `√(L·‖P‖/λ_s)` in `P`, and lose `u·√α`. With `‖P‖` the size of the `P` the
+/// update started from and `L = max(p_max, ‖P‖)`, per update:
 ///
 /// ```text
 /// λ_max(P_new) ≤ p_max·(1 + 10·n·u) + λ_s·(λ_max(P) − p_max)⁺
 ///                + Σ_rows 4·u·(‖P‖/λ_s + α_r·L)              (conventional, Joseph)
-///                + Σ_rows 4·u·(√(L·‖P‖/λ_s) + √α_r·L)        (Potter)
-///                + (Σ_rows 4·u·√(‖P‖/λ_s))²                   (Potter: δS·δSᵀ)
+///                + Σ_rows 4·u·(√(L·‖P‖/λ_s) + √α_r·L)        (Potter, inverse QR)
+///                + (Σ_rows 4·u·√(‖P‖/λ_s))²                   (Potter, inverse QR: δS·δSᵀ)
 /// α_r = 1 + w_r‖h_r‖²·‖P‖/λ_s
 /// ```
 ///
-/// While `λ ≫ u` (covariance forms) or `λ ≫ u²` (Potter) this is a slack of a few `n·u/λ`
-/// (`n·u/√λ`) on `p_max`, and an excess decays by `λ` per forgetting step. For smaller `λ`
-/// (f64: `u = 1.1·10⁻¹⁶`, f32: `6·10⁻⁸`) it is not: the direction reset to `p_max` comes out
-/// as the rounding remainder of `P/λ`, and the excess compounds (found by fuzzing, f64,
-/// `λ = 10⁻³⁰`, `p_max = 10¹⁰`, conventional: `P = 10¹⁰ → 2⁸⁰ ≈ 1.2·10²⁴ → 2¹²⁷ ≈ 1.7·10³⁸`,
-/// one ulp of `10⁴⁰` and of `1.2·10⁵⁴`) until `P/λ` overflows and updates are refused
-/// (`rejected_numerical`); Potter from `P₀ = 10⁻³·I` with `p_max = 10⁵` ends at `p_max + 4.2`
-/// after one update at `λ = 10⁻³⁰`, and with `p_max = 100` at `1.1·10¹²` at `λ = 1.5·10⁻⁴⁷`
-/// (below `u²`, where the square of the factor's rounding dominates). Prefer Bierman U-D or
-/// inverse or information QR when `λ` may be small; far below `u²` their upper bound is not
-/// established either (open fuzz finding: inverse QR in f32 at `λ = 1.2·10⁻²⁵` ended
-/// `4.9·10⁻⁵` relative above `p_max`; ROBUSTNESS.md).
+/// While `λ ≫ u` (covariance forms) or `λ ≫ u²` (square-root covariance forms) this is a slack
+/// of a few `n·u/λ` (`n·u/√λ`) on `p_max`, and an excess decays by `λ` per forgetting step.
+/// For smaller `λ` (f64: `u = 1.1·10⁻¹⁶`, f32: `6·10⁻⁸`) it is not: the direction reset to
+/// `p_max` comes out as the rounding remainder of `P/λ`, and the excess compounds (found by
+/// fuzzing, f64, `λ = 10⁻³⁰`, `p_max = 10¹⁰`, conventional: `P = 10¹⁰ → 2⁸⁰ ≈ 1.2·10²⁴ →
+/// 2¹²⁷ ≈ 1.7·10³⁸`, one ulp of `10⁴⁰` and of `1.2·10⁵⁴`) until `P/λ` overflows and updates
+/// are refused (`rejected_numerical`); Potter from `P₀ = 10⁻³·I` with `p_max = 10⁵` ends at
+/// `p_max + 4.2` after one update at `λ = 10⁻³⁰`, and with `p_max = 100` at `1.1·10¹²` at
+/// `λ = 1.5·10⁻⁴⁷` (below `u²`, where the square of the factor's rounding dominates);
+/// inverse QR in f32 at `λ = 1.2·10⁻²⁵` ends `4.9·10⁻⁵` relative above `p_max = 100`.
+/// For Bierman U-D and information QR fuzzing has found no update beyond the plain
+/// `p_max·(1 + 10·n·u·κ(P))` at any `λ`; prefer them when `λ` may be far below one (a
+/// forgetting factor below about `0.5` keeps almost no memory anyway).
 ///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
