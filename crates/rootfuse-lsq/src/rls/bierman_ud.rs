@@ -21,7 +21,7 @@
 //! the new `U` and `D` without forming `P` (Bierman 1977, ch. VI; Grewal & Andrews,
 //! *Kalman Filtering*, §6.5).
 
-use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, min_max};
+use super::{Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, min_max};
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
 /// Bierman U-D RLS with Thornton's time update. See the [module documentation](self).
@@ -159,6 +159,8 @@ impl<T: Lane, const N: usize> BiermanUd<T, N> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for BiermanUd<T, N> {
     const NAME: &'static str = "bierman-ud";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         let p = prior.p;
@@ -187,22 +189,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for BiermanUd<T, N> {
         Ok(Self { x: *x0, u, d, core })
     }
 
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        let (next, finite, _) = self.core.run(self, &self.x, &step, Self::step);
-        let accepted = self.core.finish(&step, finite);
-        self.x = Mat::select(accepted, &next.x, &self.x);
-        self.u = Mat::select(accepted, &next.u, &self.u);
-        self.d = Mat::select(accepted, &next.d, &self.d);
-        accepted
-    }
-
     fn estimate(&self) -> Vector<T, N> {
         self.x
     }
@@ -215,10 +201,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for BiermanUd<T, N> {
     fn health(&self) -> Health<T> {
         let (lo, hi) = min_max(N, |j| self.d[j]);
         self.core.health(lo, hi, self.trace_p())
-    }
-
-    fn config(&self) -> RlsConfig {
-        self.core.config()
     }
 }
 
@@ -233,4 +215,18 @@ fn trace_ud<T: Lane, const N: usize>(u: &Mat<T, N, N>, d: &Vector<T, N>) -> T {
         t = d[j].mul_add(c, t);
     }
     t
+}
+
+impl<T: Lane, const N: usize> Form<T, N> for BiermanUd<T, N> {
+    super::form_basics!();
+
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        self.x
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.x = Mat::select(accepted, &next.x, &self.x);
+        self.u = Mat::select(accepted, &next.u, &self.u);
+        self.d = Mat::select(accepted, &next.d, &self.d);
+    }
 }

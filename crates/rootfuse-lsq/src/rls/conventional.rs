@@ -32,7 +32,7 @@
 //!
 //! [`Health::lost_definiteness`]: super::Health::lost_definiteness
 
-use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, is_definite, min_max};
+use super::{Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, is_definite, min_max};
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
 /// Conventional (symmetrised) covariance-form RLS. See the [module documentation](self).
@@ -48,6 +48,8 @@ pub struct Conventional<T: Lane, const N: usize> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Conventional<T, N> {
     const NAME: &'static str = "conventional";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         Ok(Self {
@@ -56,23 +58,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Conventional<T, N>
             core,
             last: (T::Mask::splat(true), T::Mask::splat(true)),
         })
-    }
-
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        let (next, finite, definite) = self.core.run(self, &self.x, &step, Self::step);
-        self.core.lost |= step.input_ok & finite & !definite;
-        self.last = (step.input_ok, definite);
-        let accepted = self.core.finish(&step, definite & finite);
-        self.x = Mat::select(accepted, &next.x, &self.x);
-        self.p = Mat::select(accepted, &next.p, &self.p);
-        accepted
     }
 
     fn estimate(&self) -> Vector<T, N> {
@@ -86,10 +71,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Conventional<T, N>
     fn health(&self) -> Health<T> {
         let (lo, hi) = min_max(N, |j| self.p.m[j][j]);
         self.core.health(lo, hi, self.p.trace())
-    }
-
-    fn config(&self) -> RlsConfig {
-        self.core.config()
     }
 }
 
@@ -148,4 +129,22 @@ pub(crate) fn covariance_step<T: Lane, const N: usize>(
         (-half).mul_add(t, pt.m[i][j])
     });
     (x_new, p_new, hu)
+}
+
+impl<T: Lane, const N: usize> Form<T, N> for Conventional<T, N> {
+    super::form_basics!();
+
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        self.x
+    }
+    fn judge(&mut self, input_ok: T::Mask, finite: T::Mask, definite: T::Mask) -> T::Mask {
+        self.core.lost |= input_ok & finite & !definite;
+        self.last = (input_ok, definite);
+        definite & finite
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.x = Mat::select(accepted, &next.x, &self.x);
+        self.p = Mat::select(accepted, &next.p, &self.p);
+    }
 }

@@ -35,7 +35,7 @@
 //! update, only computed when bounds are configured.
 
 use super::{
-    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, frobenius2, min_max, outer_self,
+    Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, frobenius2, min_max, outer_self,
 };
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
 
@@ -213,6 +213,8 @@ impl<T: Lane, const N: usize> InformationQr<T, N> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N> {
     const NAME: &'static str = "information-qr";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         // P₀ = L Lᵀ ⇒ P₀⁻¹ = L⁻ᵀ L⁻¹; its Cholesky factor G gives R = Gᵀ.
@@ -241,32 +243,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
         })
     }
 
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        // Only the regularising rows of bounded forgetting need the estimate.
-        let x = if self.core.bounded() {
-            self.estimate()
-        } else {
-            Vector::zeros()
-        };
-        let (next, finite, _) = self.core.run(self, &x, &step, Self::step);
-        let accepted = self.core.finish(&step, finite);
-        self.r = Mat::select(accepted, &next.r, &self.r);
-        self.zeta = Mat::select(accepted, &next.zeta, &self.zeta);
-        // Without compensation the low parts stay zero.
-        if self.core.config().compensated {
-            self.r_lo = Mat::select(accepted, &next.r_lo, &self.r_lo);
-            self.zeta_lo = Mat::select(accepted, &next.zeta_lo, &self.zeta_lo);
-        }
-        accepted
-    }
-
     fn estimate(&self) -> Vector<T, N> {
         self.r.solve_upper(&self.zeta)
     }
@@ -280,8 +256,27 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InformationQr<T, N
         let (lo, hi) = min_max(N, |j| T::one() / (self.r.m[j][j] * self.r.m[j][j]));
         self.core.health(lo, hi, frobenius2(&self.r_inverse()))
     }
+}
 
-    fn config(&self) -> RlsConfig {
-        self.core.config()
+impl<T: Lane, const N: usize> Form<T, N> for InformationQr<T, N> {
+    super::form_basics!();
+
+    /// Only the regularising rows of bounded forgetting need the estimate (a solve here).
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        if self.core.bounded() {
+            self.estimate()
+        } else {
+            Vector::zeros()
+        }
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.r = Mat::select(accepted, &next.r, &self.r);
+        self.zeta = Mat::select(accepted, &next.zeta, &self.zeta);
+        // Without compensation the low parts stay zero.
+        if self.core.config().compensated {
+            self.r_lo = Mat::select(accepted, &next.r_lo, &self.r_lo);
+            self.zeta_lo = Mat::select(accepted, &next.zeta_lo, &self.zeta_lo);
+        }
     }
 }

@@ -16,7 +16,7 @@
 //! singular `S`, visible as a zero pivot `S_jj²`.
 
 use super::{
-    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
+    Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
     outer_self,
 };
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
@@ -76,6 +76,8 @@ impl<T: Lane, const N: usize> InverseQr<T, N> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InverseQr<T, N> {
     const NAME: &'static str = "inverse-qr";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         Ok(Self {
@@ -83,21 +85,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InverseQr<T, N> {
             s: prior.l,
             core,
         })
-    }
-
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        let (next, finite, _) = self.core.run(self, &self.x, &step, Self::step);
-        let accepted = self.core.finish(&step, finite);
-        self.x = Mat::select(accepted, &next.x, &self.x);
-        self.s = Mat::select(accepted, &next.s, &self.s);
-        accepted
     }
 
     fn estimate(&self) -> Vector<T, N> {
@@ -112,8 +99,17 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for InverseQr<T, N> {
         let (lo, hi) = min_max(N, |j| self.s.m[j][j] * self.s.m[j][j]);
         self.core.health(lo, hi, frobenius2(&self.s))
     }
+}
 
-    fn config(&self) -> RlsConfig {
-        self.core.config()
+impl<T: Lane, const N: usize> Form<T, N> for InverseQr<T, N> {
+    super::form_basics!();
+
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        self.x
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.x = Mat::select(accepted, &next.x, &self.x);
+        self.s = Mat::select(accepted, &next.s, &self.s);
     }
 }

@@ -27,7 +27,7 @@
 //! [conventional](super::conventional) form (flagged in
 //! [`Health::lost_definiteness`](super::Health::lost_definiteness)).
 
-use super::{Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, is_definite, min_max};
+use super::{Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, is_definite, min_max};
 use rootfuse_lane::{Lane, Mat, Vector};
 
 /// Joseph-stabilised covariance-form RLS. See the [module documentation](self).
@@ -65,6 +65,8 @@ impl<T: Lane, const N: usize> Joseph<T, N> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Joseph<T, N> {
     const NAME: &'static str = "joseph";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         Ok(Self {
@@ -72,22 +74,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Joseph<T, N> {
             p: prior.p,
             core,
         })
-    }
-
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        let (next, finite, definite) = self.core.run(self, &self.x, &step, Self::step);
-        self.core.lost |= step.input_ok & finite & !definite;
-        let accepted = self.core.finish(&step, definite & finite);
-        self.x = Mat::select(accepted, &next.x, &self.x);
-        self.p = Mat::select(accepted, &next.p, &self.p);
-        accepted
     }
 
     fn estimate(&self) -> Vector<T, N> {
@@ -102,8 +88,21 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Joseph<T, N> {
         let (lo, hi) = min_max(N, |j| self.p.m[j][j]);
         self.core.health(lo, hi, self.p.trace())
     }
+}
 
-    fn config(&self) -> RlsConfig {
-        self.core.config()
+impl<T: Lane, const N: usize> Form<T, N> for Joseph<T, N> {
+    super::form_basics!();
+
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        self.x
+    }
+    fn judge(&mut self, input_ok: T::Mask, finite: T::Mask, definite: T::Mask) -> T::Mask {
+        self.core.lost |= input_ok & finite & !definite;
+        definite & finite
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.x = Mat::select(accepted, &next.x, &self.x);
+        self.p = Mat::select(accepted, &next.p, &self.p);
     }
 }

@@ -369,6 +369,81 @@ pub trait RecursiveLeastSquares<T: Lane, const N: usize>: Sized {
     fn config(&self) -> RlsConfig;
 }
 
+/// What distinguishes one form's update from another's; [`update_form`] does the rest, so
+/// the six forms share one update path (validation, regularised forgetting, counting,
+/// per-lane acceptance).
+pub(crate) trait Form<T: Lane, const N: usize>: Copy {
+    fn core(&self) -> &Core<T>;
+    fn core_mut(&mut self) -> &mut Core<T>;
+    /// Forgetting plus one whitened measurement: (new state, finite, definite).
+    fn form_step(&self, h: &Vector<T, N>, z: T, lambda: T) -> (Self, T::Mask, T::Mask);
+    /// The estimate the regularising pseudo-rows of bounded forgetting are built on.
+    fn regularising_estimate(&self) -> Vector<T, N>;
+    /// Lanes whose step may be taken; the covariance forms also require definiteness and
+    /// record its loss.
+    fn judge(&mut self, _input_ok: T::Mask, finite: T::Mask, _definite: T::Mask) -> T::Mask {
+        finite
+    }
+    /// Takes `next`'s numeric state in `accepted` lanes (the counters stay in `Core`).
+    fn keep(&mut self, accepted: T::Mask, next: &Self);
+}
+
+/// The update every form runs: [`RecursiveLeastSquares::update_with_forgetting`].
+pub(crate) fn update_form<T: Lane, F: Form<T, N>, const N: usize>(
+    form: &mut F,
+    h: &Vector<T, N>,
+    z: T,
+    weight: T,
+    forget: T::Mask,
+) -> T::Mask {
+    let step = form.core().prepare(h, z, weight, forget);
+    let x = form.regularising_estimate();
+    let (next, finite, definite) = form.core().run(form, &x, &step, F::form_step);
+    let numeric_ok = form.judge(step.input_ok, finite, definite);
+    let accepted = form.core_mut().finish(&step, numeric_ok);
+    form.keep(accepted, &next);
+    accepted
+}
+
+/// The trait items every form implements the same way (through [`Form`]).
+macro_rules! shared_form_items {
+    () => {
+        fn update_with_forgetting(
+            &mut self,
+            h: &Vector<T, N>,
+            z: T,
+            weight: T,
+            forget: T::Mask,
+        ) -> T::Mask {
+            super::update_form(self, h, z, weight, forget)
+        }
+
+        fn config(&self) -> RlsConfig {
+            self.core.config()
+        }
+    };
+}
+use shared_form_items;
+
+/// The [`Form`] items every form implements the same way (its `core` field, its inherent
+/// `step`).
+macro_rules! form_basics {
+    () => {
+        fn core(&self) -> &Core<T> {
+            &self.core
+        }
+
+        fn core_mut(&mut self) -> &mut Core<T> {
+            &mut self.core
+        }
+
+        fn form_step(&self, h: &Vector<T, N>, z: T, lambda: T) -> (Self, T::Mask, T::Mask) {
+            self.step(h, z, lambda)
+        }
+    };
+}
+use form_basics;
+
 /// State and logic every form shares: configuration in lanes, counters, windup recursion.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Core<T: Lane> {

@@ -16,7 +16,7 @@
 //! Health reports the diagonal of `P` (row norms of `S`), since `S` is not triangular.
 
 use super::{
-    Core, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
+    Core, Form, Health, RecursiveLeastSquares, RlsConfig, RlsError, formable, frobenius2, min_max,
     outer_self,
 };
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
@@ -92,6 +92,8 @@ impl<T: Lane, const N: usize> Potter<T, N> {
 impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Potter<T, N> {
     const NAME: &'static str = "potter";
 
+    super::shared_form_items!();
+
     fn new(x0: &Vector<T, N>, p0: &Mat<T, N, N>, config: RlsConfig) -> Result<Self, RlsError> {
         let (core, prior) = Core::new(x0, p0, config)?;
         Ok(Self {
@@ -99,21 +101,6 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Potter<T, N> {
             s: prior.l,
             core,
         })
-    }
-
-    fn update_with_forgetting(
-        &mut self,
-        h: &Vector<T, N>,
-        z: T,
-        weight: T,
-        forget: T::Mask,
-    ) -> T::Mask {
-        let step = self.core.prepare(h, z, weight, forget);
-        let (next, finite, _) = self.core.run(self, &self.x, &step, Self::step);
-        let accepted = self.core.finish(&step, finite);
-        self.x = Mat::select(accepted, &next.x, &self.x);
-        self.s = Mat::select(accepted, &next.s, &self.s);
-        accepted
     }
 
     fn estimate(&self) -> Vector<T, N> {
@@ -135,8 +122,17 @@ impl<T: Lane, const N: usize> RecursiveLeastSquares<T, N> for Potter<T, N> {
         let (lo, hi) = min_max(N, row2);
         self.core.health(lo, hi, frobenius2(&self.s))
     }
+}
 
-    fn config(&self) -> RlsConfig {
-        self.core.config()
+impl<T: Lane, const N: usize> Form<T, N> for Potter<T, N> {
+    super::form_basics!();
+
+    fn regularising_estimate(&self) -> Vector<T, N> {
+        self.x
+    }
+
+    fn keep(&mut self, accepted: T::Mask, next: &Self) {
+        self.x = Mat::select(accepted, &next.x, &self.x);
+        self.s = Mat::select(accepted, &next.s, &self.s);
     }
 }
