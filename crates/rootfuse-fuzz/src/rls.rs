@@ -348,7 +348,14 @@ fn run<T, F, const N: usize>(
             // form's P formed at a pivot ratio beyond 1/(n·u), whose rounding can exceed any
             // bound (ROBUSTNESS.md; found: information QR with h entries of 1e50, pivot ratio
             // 1e99, formed P_11 = 1e19 where the exact value is below p_max).
-            let well_conditioned = !factored || hi <= lo / n_eps;
+            // The pivot ratio is only a lower bound of κ: the formed P itself must also show
+            // an eigenvalue gap above its own rounding (found: information QR, f32, pivot
+            // ratio within 1/(n·u) but κ(P) ≈ 10²¹; the formed P came out indefinite and
+            // 1.39e10 against p_max = 1e10).
+            let formed = Mat::<f64, N, N>::from_fn(|i, j| p.m[i][j].into());
+            let rounding = 10.0 * n_eps * formed.trace().abs();
+            let formed_gap = (formed - Mat::identity().scale(rounding)).cholesky().1;
+            let well_conditioned = !factored || (hi <= lo / n_eps && formed_gap);
             // An unchanged P was checked before (its bound carries over).
             let unchanged = bits(&p) == bits(&p_before);
             let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned && !unchanged;
