@@ -49,6 +49,37 @@ trait DynRls: Send + Sync {
     fn covariance(&self) -> Vec<f64>;
     fn health(&self) -> HealthF64;
     fn name(&self) -> &'static str;
+    /// `f` row-major `(n, n)`; `Ok(applied)`, or `Err` with why the form cannot.
+    fn predict(&mut self, f: &[f64], lambda: f64) -> Result<bool, String>;
+    /// `q` `(n,)`, variances added to the diagonal of `P`.
+    fn time_update(&mut self, q: &[f64]) -> Result<bool, String>;
+}
+
+/// The time updates only some forms have: Potter's known transition, Bierman's process noise.
+trait TimeUpdates<T: Lane, const N: usize> {
+    fn predict(&mut self, _f: &Mat<T, N, N>, _lambda: T) -> Result<bool, String> {
+        Err("only the potter form has a state transition (predict)".into())
+    }
+    fn time_update(&mut self, _q: &Vector<T, N>) -> Result<bool, String> {
+        Err("only the bierman-ud form adds process noise (time_update)".into())
+    }
+}
+
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for Conventional<T, N> {}
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for Joseph<T, N> {}
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for InverseQr<T, N> {}
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for InformationQr<T, N> {}
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for Potter<T, N> {
+    fn predict(&mut self, f: &Mat<T, N, N>, lambda: T) -> Result<bool, String> {
+        Potter::predict(self, f, lambda)
+            .map(|m| m.all())
+            .map_err(|e| e.to_string())
+    }
+}
+impl<T: Lane, const N: usize> TimeUpdates<T, N> for BiermanUd<T, N> {
+    fn time_update(&mut self, q: &Vector<T, N>) -> Result<bool, String> {
+        Ok(BiermanUd::time_update(self, q).all())
+    }
 }
 
 /// A form over `T` at size `N` (the parameters name the `RecursiveLeastSquares` instance).
@@ -61,7 +92,7 @@ fn to_f64<T: Lane>(x: T) -> f64 {
 impl<T, const N: usize, R> DynRls for Typed<T, N, R>
 where
     T: Lane<Scalar = T> + Send + Sync,
-    R: RecursiveLeastSquares<T, N> + Send + Sync,
+    R: RecursiveLeastSquares<T, N> + TimeUpdates<T, N> + Send + Sync,
 {
     fn n(&self) -> usize {
         N
@@ -100,6 +131,14 @@ where
     fn name(&self) -> &'static str {
         R::NAME
     }
+    fn predict(&mut self, f: &[f64], lambda: f64) -> Result<bool, String> {
+        let f = Mat::<T, N, N>::from_fn(|r, c| T::from_f64(f[r * N + c]));
+        self.0.predict(&f, T::from_f64(lambda))
+    }
+    fn time_update(&mut self, q: &[f64]) -> Result<bool, String> {
+        let q = Vector::<T, N>::from_column(core::array::from_fn(|i| T::from_f64(q[i])));
+        self.0.time_update(&q)
+    }
 }
 
 fn build_form<T, const N: usize>(
@@ -118,7 +157,7 @@ where
     ) -> PyResult<Box<dyn DynRls>>
     where
         T: Lane<Scalar = T> + Send + Sync,
-        R: RecursiveLeastSquares<T, N> + Send + Sync + 'static,
+        R: RecursiveLeastSquares<T, N> + TimeUpdates<T, N> + Send + Sync + 'static,
     {
         r.map(|r| Box::new(Typed::<T, N, R>(r, core::marker::PhantomData)) as Box<dyn DynRls>)
             .map_err(|e| PyValueError::new_err(format!("Rls: {e}")))
@@ -337,6 +376,33 @@ impl Rls {
         out.set_item("trace", PyArray1::from_vec(py, tr))?;
         out.set_item("lost_definiteness", PyArray1::from_vec(py, lost))?;
         Ok(out)
+    }
+
+    /// Potter form only: a known state transition between measurements, `x ← F x`,
+    /// `P ← F P Fᵀ / lam` (`f` `(n, n)`, `lam` in (0, 1], 1 = no forgetting). Returns True if
+    /// applied, False if `f`/`lam` were not usable or the result not finite (counted in
+    /// `health`). ValueError for another form, or when covariance bounds are set (a general
+    /// transition would void them).
+    #[pyo3(signature = (f, lam=1.0))]
+    fn predict(&mut self, f: &Bound<'_, PyAny>, lam: f64) -> PyResult<bool> {
+        let n = self.inner.n();
+        let f = square(f, "f", n)?;
+        self.inner
+            .predict(&f, lam)
+            .map_err(|e| PyValueError::new_err(format!("predict: {e}")))
+    }
+
+    /// Bierman U-D form only: process noise `Q = diag(q)` added to `P` (`q` `(n,)`, variances
+    /// in units of P, ≥ 0) by Thornton's square-root-free time update. With covariance bounds
+    /// `q` is scaled down so that `trace(P) ≤ p_max` still holds. Returns True if applied,
+    /// False for a negative or non-finite `q` (counted as rejected input). ValueError for
+    /// another form.
+    fn time_update(&mut self, q: &Bound<'_, PyAny>) -> PyResult<bool> {
+        let q = vector(q, "q")?;
+        check_n("q", q.len(), self.inner.n())?;
+        self.inner
+            .time_update(&q)
+            .map_err(|e| PyValueError::new_err(format!("time_update: {e}")))
     }
 
     /// The current estimate x, float64 `(n,)`.

@@ -100,6 +100,42 @@ def test_rls_forgetting_bounds_and_every_size():
     assert r2.estimate.tolist() == [1.0, 1.0]
 
 
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_potter_predict_is_the_known_transition(precision):
+    # Closed form: x ← F x, P ← F P Fᵀ / λ.
+    x0 = np.array([1.0, -2.0, 0.5])
+    p0 = np.array([[2.0, 0.3, 0.0], [0.3, 1.0, 0.1], [0.0, 0.1, 0.5]])
+    f = np.array([[1.0, 0.1, 0.005], [0.0, 1.0, 0.1], [0.0, 0.0, 1.0]])
+    r = rf.Rls("potter", 3, x0=x0, p0=p0, precision=precision)
+    assert r.predict(f, lam=0.9)
+    tol = 1e-5 if precision == "f32" else 1e-12
+    np.testing.assert_allclose(r.estimate, f @ x0, rtol=tol, atol=tol)
+    np.testing.assert_allclose(r.covariance, f @ p0 @ f.T / 0.9, rtol=tol, atol=tol)
+    # A bad transition is refused and counted, the state kept.
+    before = r.estimate.copy()
+    assert not r.predict(np.full((3, 3), np.nan))
+    np.testing.assert_array_equal(r.estimate, before)
+    assert r.health["rejected_input"] == 1
+    with pytest.raises(ValueError, match="only the potter form"):
+        rf.Rls("bierman-ud", 3).predict(f)
+    with pytest.raises(ValueError, match="bounds"):
+        rf.Rls("potter", 3, p0=1.0, p_max=10.0).predict(f)
+
+
+def test_bierman_time_update_adds_process_noise():
+    p0 = np.array([[2.0, 0.3], [0.3, 1.0]])
+    r = rf.Rls("bierman-ud", 2, p0=p0)
+    q = np.array([0.5, 0.25])
+    assert r.time_update(q)
+    np.testing.assert_allclose(r.covariance, p0 + np.diag(q), rtol=1e-12, atol=1e-12)
+    assert not r.time_update(np.array([-1.0, 0.0]))
+    np.testing.assert_allclose(r.covariance, p0 + np.diag(q), rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="only the bierman-ud form"):
+        rf.Rls("potter", 2).time_update(q)
+    with pytest.raises(ValueError, match="q: expected"):
+        r.time_update(np.zeros(3))
+
+
 def test_conventional_form_flags_its_failure_in_f32():
     # Dyer-McReynolds, delta = 1e-4 in f32: the covariance forms lose definiteness and say so
     d = 1e-4

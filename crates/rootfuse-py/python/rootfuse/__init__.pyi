@@ -158,6 +158,10 @@ class Rls:
     def run(self, h: FloatArray, z: FloatArray, weights: Union[float, FloatArray, None] = None) -> Dict[str, npt.NDArray[Any]]:
         """K measurements: ``estimate`` (K, n), ``accepted``, ``min_pivot``, ``max_pivot``,
         ``trace``, ``lost_definiteness`` (K,)."""
+    def predict(self, f: FloatArray, lam: float = 1.0) -> bool:
+        """Potter only: x ← F x, P ← F P Fᵀ / lam; ValueError for other forms or with bounds."""
+    def time_update(self, q: FloatArray) -> bool:
+        """Bierman U-D only: P ← P + diag(q); ValueError for other forms."""
     @property
     def estimate(self) -> F64: ...
     @property
