@@ -299,7 +299,10 @@ fn run<T, F, const N: usize>(
             // α = 1 + w·hᵀ(P/λ_s)h loses u·α (Potter u·√α) relative at the result's scale.
             // Plus the contraction of an excess by the exact regularised forgetting (an
             // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
-            let covariance_form = matches!(name, "conventional" | "joseph");
+            // Bierman U-D scales `D` by 1/λ_s as the covariance forms scale `P`, so it rounds at
+            // the same scale (found: f64, λ = 4.5e-44, p_max = 100, P_02 = −1.2e-8 after 46
+            // operations where 100·(1 + 10·n·u) was allowed).
+            let covariance_form = matches!(name, "conventional" | "joseph" | "bierman-ud");
             // Inverse QR rotates the same `S̃ = S/√λ_s` that Potter updates, so it rounds at
             // the same scale (found: f32, λ = 1.2e-25, p_max = 100 ended 4.9e-5 relative above).
             let square_root_factor = matches!(name, "potter" | "inverse-qr");

@@ -96,7 +96,7 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 ///
 /// # The covariance forms and the square-root covariance forms at extreme forgetting
 /// The conventional and Joseph forms subtract from `P̃ = P/λ_s` itself (`λ_s` the step's
-/// forgetting factor: `λ`, or 1 when not forgetting), so every row of an update — the
+/// forgetting factor: `λ`, or 1 when not forgetting), and Bierman U-D from `D̃ = D/λ_s`, so every row of an update — the
 /// measurement rows and, when forgetting, the `n` regularising pseudo-rows
 /// (`w‖h‖² = (1 − λ)/p_max`) — rounds at `P̃`'s scale, and a row with
 /// `α = 1 + w·hᵀP̃h` also loses about `u·α` relative at the result's scale (`u` the unit
@@ -107,13 +107,13 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 ///
 /// ```text
 /// λ_max(P_new) ≤ p_max·(1 + 10·n·u) + λ_s·(λ_max(P) − p_max)⁺
-///                + Σ_rows 4·u·(‖P‖/λ_s + α_r·L)              (conventional, Joseph)
+///                + Σ_rows 4·u·(‖P‖/λ_s + α_r·L)              (conventional, Joseph, Bierman U-D)
 ///                + Σ_rows 4·u·(√(L·‖P‖/λ_s) + √α_r·L)        (Potter, inverse QR)
 ///                + (Σ_rows 4·u·√(‖P‖/λ_s))²                   (Potter, inverse QR: δS·δSᵀ)
 /// α_r = 1 + w_r‖h_r‖²·‖P‖/λ_s
 /// ```
 ///
-/// While `λ ≫ u` (covariance forms) or `λ ≫ u²` (square-root covariance forms) this is a slack
+/// While `λ ≫ u` (covariance forms, Bierman U-D) or `λ ≫ u²` (square-root covariance forms) this is a slack
 /// of a few `n·u/λ` (`n·u/√λ`) on `p_max`, and an excess decays by `λ` per forgetting step.
 /// For smaller `λ` (f64: `u = 1.1·10⁻¹⁶`, f32: `6·10⁻⁸`) it is not: the direction reset to
 /// `p_max` comes out as the rounding remainder of `P/λ`, and the excess compounds (found by
@@ -122,10 +122,11 @@ use rootfuse_lane::{Lane, Mask, Mat, Vector};
 /// are refused (`rejected_numerical`); Potter from `P₀ = 10⁻³·I` with `p_max = 10⁵` ends at
 /// `p_max + 4.2` after one update at `λ = 10⁻³⁰`, and with `p_max = 100` at `1.1·10¹²` at
 /// `λ = 1.5·10⁻⁴⁷` (below `u²`, where the square of the factor's rounding dominates);
-/// inverse QR in f32 at `λ = 1.2·10⁻²⁵` ends `4.9·10⁻⁵` relative above `p_max = 100`.
-/// For Bierman U-D and information QR fuzzing has found no update beyond the plain
-/// `p_max·(1 + 10·n·u·κ(P))` at any `λ`; prefer them when `λ` may be far below one (a
-/// forgetting factor below about `0.5` keeps almost no memory anyway).
+/// inverse QR in f32 at `λ = 1.2·10⁻²⁵` ends `4.9·10⁻⁵` relative above `p_max = 100`, Bierman
+/// U-D in f64 at `λ = 4.5·10⁻⁴⁴` `1.2·10⁻¹⁰` relative above it. For information QR, which
+/// scales its factor by `√λ` (information shrinks, nothing is divided), fuzzing has found no
+/// update beyond the plain `p_max·(1 + 10·n·u·κ(P))` at any `λ`: prefer it when `λ` may be far
+/// below one (a forgetting factor below about `0.5` keeps almost no memory anyway).
 ///
 /// # How it is kept (the same for every form)
 /// - *Upper bound*, by regularised forgetting: each forgetting step is
