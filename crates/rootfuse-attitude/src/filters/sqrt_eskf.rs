@@ -327,6 +327,60 @@ impl<T: Lane> Coefficients<T> {
     }
 }
 
+/// The coefficients that depend on the time step only, per lane, for the `dt` they were
+/// computed for: with a constant `dt` (the usual case) they are computed once instead of
+/// every sample (`exp`, `sqrt` and divisions). Bit for bit what the formulas give, so
+/// caching changes no result; not part of the state, a lane that skips a sample needs no
+/// restore.
+#[derive(Clone, Copy, Debug)]
+struct PerDt<T: Lane> {
+    /// The `dt` of the screened sample (zero where it is skipped), s.
+    dt: T,
+    /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step.
+    gyr_std: T,
+    bias_std: T,
+    /// Per-sample measurement variances from the noise densities, `density²/dt` (`dt = 0`,
+    /// a skipped sample, divides by 1: finite, and discarded).
+    r_acc: T,
+    r_rest: T,
+    r_mag: T,
+    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference and the
+    /// accelerometer low-pass after the start-up (each stage τ/2).
+    k_rest: T,
+    k_ref: T,
+    k_acc: T,
+}
+
+impl<T: Lane> PerDt<T> {
+    fn new(c: &Coefficients<T>) -> Self {
+        Self::compute(T::zero(), c)
+    }
+
+    fn compute(dt: T, c: &Coefficients<T>) -> Self {
+        let sdt = dt.sqrt();
+        let per_sample = T::select(dt.simd_gt(T::zero()), dt, T::one());
+        Self {
+            dt,
+            gyr_std: c.gyr_noise * sdt,
+            bias_std: c.bias_walk * sdt,
+            r_acc: c.acc_var / per_sample,
+            r_rest: c.rest_var / per_sample,
+            r_mag: c.mag_var / per_sample,
+            k_rest: lowpass_gain(dt, c.rest_tau),
+            k_ref: lowpass_gain(dt, c.mag_ref_tau),
+            k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
+        }
+    }
+
+    /// Recomputes every lane when any lane's `dt` differs from the cached one.
+    #[inline]
+    fn refresh(&mut self, dt: T, c: &Coefficients<T>) {
+        if dt.simd_ne(self.dt).any() {
+            *self = Self::compute(dt, c);
+        }
+    }
+}
+
 /// Square-root multiplicative error-state Kalman filter (see the module documentation).
 ///
 /// State: the strapdown quaternion (quasi-inertial frame), the earth-frame correction `c`
@@ -339,6 +393,7 @@ pub struct SqrtEskf<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    per_dt: PerDt<T>,
 }
 
 impl<T: Lane> SqrtEskf<T> {
@@ -351,6 +406,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// the screening limits are those of the first set.
     pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
         let coef = Coefficients::new(p);
+        let per_dt = PerDt::new(&coef);
         let zero = T::zero();
         Self {
             state: State {
@@ -385,6 +441,7 @@ impl<T: Lane> SqrtEskf<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            per_dt,
         }
     }
 
@@ -458,12 +515,18 @@ impl<T: Lane> SqrtEskf<T> {
                 s.m[i][j] -= dt * v;
             }
         }
-        let sdt = dt.sqrt();
-        let qt = self.coef.gyr_noise * sdt;
-        let qb = self.coef.bias_walk * sdt;
-        // Re-acquisition noise is independent of the gyro noise: add it in quadrature.
-        let qt_xy = (qt * qt + extra_tilt_std * extra_tilt_std).sqrt();
-        let qb = (qb * qb + extra_bias_std * extra_bias_std).sqrt();
+        let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
+        // Re-acquisition noise is independent of the gyro noise: add it in quadrature (only
+        // when a lane has some: `√(q²) = q` exactly, so skipping changes nothing).
+        let (qt_xy, qb) =
+            if (extra_tilt_std.simd_ne(T::zero()) | extra_bias_std.simd_ne(T::zero())).any() {
+                (
+                    (qt * qt + extra_tilt_std * extra_tilt_std).sqrt(),
+                    (qb * qb + extra_bias_std * extra_bias_std).sqrt(),
+                )
+            } else {
+                (qt, qb)
+            };
         add_diagonal_noise(s, &[qt_xy, qt_xy, qt, qb, qb, qb]);
     }
 
@@ -554,7 +617,7 @@ impl<T: Lane> SqrtEskf<T> {
     fn detect_rest(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
         let c = &self.coef;
         let st = &mut self.state;
-        let k_rest = lowpass_gain(s.dt, c.rest_tau);
+        let k_rest = self.per_dt.k_rest;
         st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
         let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
         st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
@@ -616,10 +679,16 @@ impl<T: Lane> SqrtEskf<T> {
         let st = &mut self.state;
         // The low-pass time constant grows linearly over the start-up phase, so the first
         // seconds follow the accelerometer (and a wrong start is not frozen into the average).
-        let tau = self.coef.tau_acc * (st.age / self.coef.startup_time).min(T::one());
+        let ramp = (st.age / self.coef.startup_time).min(T::one());
+        let tau = self.coef.tau_acc * ramp;
         // Two equal first-order stages (τ/2 each): a critically damped second-order low-pass
-        // whose mean delay is still τ, with −40 dB/decade above its corner.
-        let k_acc = lowpass_gain(s.dt, tau * T::from_f64(0.5));
+        // whose mean delay is still τ, with −40 dB/decade above its corner. After the
+        // start-up (ramp = 1 in every lane) the gain is the cached one.
+        let k_acc = if ramp.simd_lt(T::one()).any() {
+            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+        } else {
+            self.per_dt.k_acc
+        };
         let a_i = st.strapdown.rotate(acc_raw);
         let rg = st.strapdown.to_rotation_matrix();
         st.acc_lp1 = Vec3::select(
@@ -645,8 +714,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
     fn correct_inclination(&mut self, s: &Screened<T>, tau: T, starting: T::Mask) {
         let zero = T::zero();
-        let one = T::one();
-        let r_acc = self.coef.acc_var / T::select(s.step, s.dt, one);
+        let r_acc = self.per_dt.r_acc;
         let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
         let mut any_accept = <T::Mask as Mask>::splat(false);
         let mut applied = <T::Mask as Mask>::splat(false);
@@ -701,13 +769,13 @@ impl<T: Lane> SqrtEskf<T> {
     }
 
     /// Bias at rest: the low-passed gyro measures `b` directly.
-    fn correct_bias_at_rest(&mut self, s: &Screened<T>, rest: T::Mask) {
+    fn correct_bias_at_rest(&mut self, rest: T::Mask) {
         // Every lane not at rest discards these updates: skipping them when no lane is at
         // rest changes no result.
         if !rest.any() {
             return;
         }
-        let r_rest = self.coef.rest_var / T::select(s.step, s.dt, T::one());
+        let r_rest = self.per_dt.r_rest;
         self.rest_axis::<3>(r_rest, rest);
         self.rest_axis::<4>(r_rest, rest);
         self.rest_axis::<5>(r_rest, rest);
@@ -742,7 +810,7 @@ impl<T: Lane> SqrtEskf<T> {
         };
         let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
         let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
-        let k_ref = lowpass_gain(dt, c.mag_ref_tau);
+        let k_ref = self.per_dt.k_ref;
         let mut nf = f;
         nf.candidate_norm = T::select(
             ok_cand,
@@ -776,7 +844,7 @@ impl<T: Lane> SqrtEskf<T> {
         let st = &mut self.state;
         let q9 = Quat::from_heading(st.heading_offset) * q6;
         let (psi, psi_ok) = magnetic_heading_error(q9, s.mag);
-        let r_mag = c.mag_var / T::select(s.step, dt, one);
+        let r_mag = self.per_dt.r_mag;
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
         let apply = use_mag & psi_ok & !fresh;
@@ -824,6 +892,7 @@ fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        self.per_dt.refresh(s.dt, &self.coef);
         // Lanes that cannot step keep their whole state; lanes not yet initialised only
         // wait for a usable accelerometer. When every lane steps from a running state there
         // is nothing to restore, and the state is not copied.
@@ -838,7 +907,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
         self.correct_inclination(&s, tau, starting);
-        self.correct_bias_at_rest(&s, rest);
+        self.correct_bias_at_rest(rest);
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth, fresh);
         }
