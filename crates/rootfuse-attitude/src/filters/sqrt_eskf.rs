@@ -554,17 +554,20 @@ impl<T: Lane> SqrtEskf<T> {
                 factor.m[i][j] = T::select(accept, s_new.m[i][j], factor.m[i][j]);
             }
         }
-        let k = T::select(accept, nu / T::select(accept, alpha, T::one()), T::zero());
-        let dx = core::array::from_fn(|i| sf[i] * k);
+        let k = nu / T::select(accept, alpha, T::one());
+        let dx = core::array::from_fn(|i| T::select(accept, sf[i] * k, T::zero()));
         (dx, accept)
     }
 
     /// Injects an error-state correction into `c` and `b̂` (then the error is zero again).
-    fn inject(&mut self, dx: [T; 6]) {
+    /// Lanes that did not accept the update keep `c` and `b̂` bit for bit (no renormalisation),
+    /// so whether the update ran at all — it is skipped when no lane needs it — is invisible.
+    fn inject(&mut self, dx: [T; 6], accepted: T::Mask) {
+        let st = &mut self.state;
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
-        self.state.correction =
-            (Quat::from_rotation_vector(dtheta) * self.state.correction).normalize();
-        self.state.bias += Vec3::new(dx[3], dx[4], dx[5]);
+        let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).normalize();
+        st.correction = Quat::select(accepted, corrected, st.correction);
+        st.bias = Vec3::select(accepted, st.bias + Vec3::new(dx[3], dx[4], dx[5]), st.bias);
     }
 
     /// Initialisation from the first usable sample: inclination from gravity, heading
@@ -764,7 +767,7 @@ impl<T: Lane> SqrtEskf<T> {
         }
         let apply = s.acc_ok & v_ok;
         let (dx, accepted) = self.scalar_update::<AXIS>(h, eps[AXIS], r_acc, gate, apply);
-        self.inject(dx);
+        self.inject(dx, accepted);
         (accepted, apply)
     }
 
@@ -787,8 +790,8 @@ impl<T: Lane> SqrtEskf<T> {
         h[STATE] = T::one();
         let k = STATE - 3;
         let z = self.state.rest_gyr_lp.to_array()[k] - self.state.bias.to_array()[k];
-        let (dx, _) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
-        self.inject(dx);
+        let (dx, accepted) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
+        self.inject(dx, accepted);
     }
 
     /// Heading offset from the magnetometer (9D): disturbance detection against the learned
