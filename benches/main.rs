@@ -210,15 +210,19 @@ fn flagship(c: &mut Criterion) {
         });
     let (rec, source) = rec;
     eprintln!("flagship group: {source}, {} samples", rec.len());
-    let raw: Vec<(ImuSample<f64>, f64)> = (0..rec.len())
-        .map(|i| (rec.sample(i), rec.dt(i)))
-        .collect();
+    let raw: Vec<(ImuSample<f64>, f64)> =
+        (0..rec.len()).map(|i| (rec.sample(i), rec.dt(i))).collect();
     let mut group = c.benchmark_group("flagship/9d");
     fn ours<T: Lane>(group: &mut Group<'_>, mode: &str, raw: &[(ImuSample<f64>, f64)]) {
         let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
         let input: Vec<(ImuSample<T>, T)> = raw
             .iter()
-            .map(|(s, dt)| (ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)), T::from_f64(*dt)))
+            .map(|(s, dt)| {
+                (
+                    ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
+                    T::from_f64(*dt),
+                )
+            })
             .collect();
         let mut f = SqrtEskf::<T>::new(&SqrtEskfParams::default());
         let mut at = 0;
