@@ -189,5 +189,84 @@ fn rls_forms(c: &mut Criterion) {
     sizes!(3 4 7 8 16 64);
 }
 
-criterion_group!(benches, gyro_step, simulator, batch_filters, rls_forms);
+/// The flagship (`SqrtEskf`, 9D, defaults) per channel-update in every precision and lane
+/// width, beside VQF (the `vqf-rs` port, f64) on the same recording: BROAD trial 02 when the
+/// data is there (`$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`), else 60 s of the simulator's
+/// fast rotation at 286 Hz. Each iteration runs the next 2000 samples (wrapping around) on a
+/// filter that keeps running; throughput is in channel-updates, so the rows compare directly.
+fn flagship(c: &mut Criterion) {
+    use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
+    use rootfuse::attitude::{ImuSample, OrientationFilter};
+    const STEPS: usize = 2000;
+    let dir = std::env::var_os("ROOTFUSE_BROAD_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/broad_csv"));
+    let rec = rootfuse::io::read_csv(dir.join("02_undisturbed_slow_rotation_B.csv"))
+        .map(|r| (r, "BROAD 02"))
+        .unwrap_or_else(|_| {
+            let r = rootfuse::eval::sim::scenario("fast-rotation", 1, 60.0, 286.0)
+                .expect("a known scenario");
+            (r, "simulated fast rotation")
+        });
+    let (rec, source) = rec;
+    eprintln!("flagship group: {source}, {} samples", rec.len());
+    let raw: Vec<(ImuSample<f64>, f64)> =
+        (0..rec.len()).map(|i| (rec.sample(i), rec.dt(i))).collect();
+    let mut group = c.benchmark_group("flagship/9d");
+    fn ours<T: Lane>(group: &mut Group<'_>, mode: &str, raw: &[(ImuSample<f64>, f64)]) {
+        let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
+        let input: Vec<(ImuSample<T>, T)> = raw
+            .iter()
+            .map(|(s, dt)| {
+                (
+                    ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)),
+                    T::from_f64(*dt),
+                )
+            })
+            .collect();
+        let mut f = SqrtEskf::<T>::new(&SqrtEskfParams::default());
+        let mut at = 0;
+        group.throughput(Throughput::Elements((STEPS * T::LANES) as u64));
+        group.bench_function(mode, |b| {
+            b.iter(|| {
+                for _ in 0..STEPS {
+                    let (s, dt) = &input[at];
+                    f.update(black_box(s), *dt);
+                    at = (at + 1) % input.len();
+                }
+                black_box(f.quat())
+            })
+        });
+    }
+    type Group<'a> = criterion::BenchmarkGroup<'a, criterion::measurement::WallTime>;
+    ours::<f32>(&mut group, "ours-scalar-f32", &raw);
+    ours::<f64>(&mut group, "ours-scalar-f64", &raw);
+    ours::<wide::f32x8>(&mut group, "ours-lanes-f32x8", &raw);
+    ours::<wide::f64x4>(&mut group, "ours-lanes-f64x4", &raw);
+    group.throughput(Throughput::Elements(STEPS as u64));
+    let ts = raw.get(1).map_or(0.0035, |r| r.1);
+    let mut vqf = vqf_rs::VQF::new(ts, None, None, None);
+    let mut at = 0;
+    group.bench_function("vqf-rs-f64", |b| {
+        b.iter(|| {
+            for _ in 0..STEPS {
+                let (s, _) = &raw[at];
+                let a = |v: Vec3<f64>| [v.x, v.y, v.z];
+                vqf.update(a(black_box(s).gyr), a(s.acc), Some(a(s.mag)));
+                at = (at + 1) % raw.len();
+            }
+            black_box(vqf.quat_9d())
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    gyro_step,
+    simulator,
+    batch_filters,
+    rls_forms,
+    flagship
+);
 criterion_main!(benches);

@@ -103,8 +103,15 @@ def main():
                 else:
                     v.updateBatch(np.ascontiguousarray(gyr), np.ascontiguousarray(acc))
             ns_vqf = best_of(go_vqf, args.repeats) * 1e9 / n
-            ours = next(r[1] for r in rows if r[0] == f"rootfuse flagship {dof}D f64 update_batch")
-            row(f"vqf.VQF.updateBatch {dof}D (C++)", ns_vqf, None, f"ours f64 / vqf = {ours / ns_vqf:.2f}")
+            # The flagship against VQF's C++ in this run: from Python (update_batch) and as
+            # the Rust loop (when examples/filter_loop is built), f32 and f64.
+            ratios = []
+            for precision in ("f32", "f64"):
+                r = next(r for r in rows if r[0] == f"rootfuse flagship {dof}D {precision} update_batch")
+                ratios.append(f"ours {precision} / vqf = {r[1] / ns_vqf:.2f}")
+                if r[2]:
+                    ratios.append(f"Rust loop {precision} / vqf = {r[2] / ns_vqf:.2f}")
+            row(f"vqf.VQF.updateBatch {dof}D (C++)", ns_vqf, None, "; ".join(ratios))
     except ImportError:
         row("vqf", float("nan"), None, "not installed")
 

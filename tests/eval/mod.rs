@@ -1,3 +1,4 @@
 //! Evaluation: the BROAD recordings and metrics, the simulator.
 mod broad;
+mod broad_flagship;
 mod sim;

@@ -18,6 +18,7 @@ mod mahony;
 mod params;
 mod screen;
 mod sqrt_eskf;
+mod upper_factor;
 
 /// Declares a struct of per-lane filter state with its [`Select`](rootfuse_lane::Select)
 /// implementation generated field by field: a skipped sample keeps a lane's state with one

@@ -24,16 +24,21 @@
 //! error dynamics `δθ̇ = −R(q6)·δb` have an identity attitude block (no `[ω]×` term),
 //! so the transition matrix is `F = [[I, −R·dt], [0, I]]`.
 //!
-//! The covariance is carried as a factor `P = S·Sᵀ` (`S` 6×6). The time update
-//! re-triangularises `[F·S, G·Q^½]` (6×12) by Householder reflections applied from the
-//! right (the square-root time update of Kaminski, Bryson & Schmidt 1971; Bierman 1977,
-//! "Factorization Methods for Discrete Sequential Estimation", ch. V), so the propagated
-//! factor is lower triangular with a non-negative diagonal and `P` never has to be formed.
-//! Measurements are processed as sequential scalar updates by Potter's square-root form
-//! (Potter & Stern 1963; Bierman 1977, ch. III): with `f = Sᵀh`, `α = fᵀf + r`,
-//! `K = S·f/α`, `S ← S − γ/α·(S·f)·fᵀ`, `γ = 1/(1 + √(r/α))`. Both are orthogonal or
-//! rank-one-downdate-free operations on the factor, so `P = S·Sᵀ` is symmetric and positive
-//! semidefinite by construction in f32 as well as f64 (Thornton 1976 compares these forms).
+//! The covariance is carried as an upper-triangular factor `P = S·Sᵀ` (`S` 6×6). The
+//! transition is block upper triangular, so `F·S` is upper triangular again and only its
+//! attitude–bias block changes; the time update then folds the diagonal process noise in by
+//! Householder reflections from the right that each mix one column of `S` with the noise
+//! columns that are non-zero in its row (the square-root time update of Kaminski, Bryson &
+//! Schmidt 1971 restricted to what changed; Bierman 1977, "Factorization Methods for
+//! Discrete Sequential Estimation", ch. V), so `P` never has to be formed. Measurements are
+//! processed as sequential scalar updates by Carlson's triangular square-root form (Carlson
+//! 1973; Bierman 1977, ch. V): with `f = Sᵀh` and `α_j = r + Σ_{k≤j} f_k²`,
+//! `S ← S·W`, `W` upper triangular (`W_jj = √(α_{j−1}/α_j)`,
+//! `W_ij = −f_i·f_j/√(α_{j−1}·α_j)`), `K = S·f/α_n` — Potter's form gives the same `P` and
+//! `K` but fills the factor, which would cost a full re-triangularisation per time update.
+//! Both steps are orthogonal transformations of, or products with, the factor, so
+//! `P = S·Sᵀ` is symmetric and positive semidefinite by construction in f32 as well as f64
+//! (Thornton 1976 compares these forms).
 //! After each update the error is injected into `c` (`c ← Exp(δθ̂) ⊗ c`) and `b̂`, and reset to
 //! zero (Solà 2017, §7.2; the reset Jacobian `I − [δθ̂/2]×` is taken as identity, its effect
 //! being second order for the small corrections applied per sample).
@@ -126,6 +131,7 @@
 // formulas are written); iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use super::upper_factor::{add_diagonal_noise, carlson_update};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
@@ -321,6 +327,60 @@ impl<T: Lane> Coefficients<T> {
     }
 }
 
+/// The coefficients that depend on the time step only, per lane, for the `dt` they were
+/// computed for: with a constant `dt` (the usual case) they are computed once instead of
+/// every sample (`exp`, `sqrt` and divisions). Bit for bit what the formulas give, so
+/// caching changes no result; not part of the state, a lane that skips a sample needs no
+/// restore.
+#[derive(Clone, Copy, Debug)]
+struct PerDt<T: Lane> {
+    /// The `dt` of the screened sample (zero where it is skipped), s.
+    dt: T,
+    /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step.
+    gyr_std: T,
+    bias_std: T,
+    /// Per-sample measurement variances from the noise densities, `density²/dt` (`dt = 0`,
+    /// a skipped sample, divides by 1: finite, and discarded).
+    r_acc: T,
+    r_rest: T,
+    r_mag: T,
+    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference and the
+    /// accelerometer low-pass after the start-up (each stage τ/2).
+    k_rest: T,
+    k_ref: T,
+    k_acc: T,
+}
+
+impl<T: Lane> PerDt<T> {
+    fn new(c: &Coefficients<T>) -> Self {
+        Self::compute(T::zero(), c)
+    }
+
+    fn compute(dt: T, c: &Coefficients<T>) -> Self {
+        let sdt = dt.sqrt();
+        let per_sample = T::select(dt.simd_gt(T::zero()), dt, T::one());
+        Self {
+            dt,
+            gyr_std: c.gyr_noise * sdt,
+            bias_std: c.bias_walk * sdt,
+            r_acc: c.acc_var / per_sample,
+            r_rest: c.rest_var / per_sample,
+            r_mag: c.mag_var / per_sample,
+            k_rest: lowpass_gain(dt, c.rest_tau),
+            k_ref: lowpass_gain(dt, c.mag_ref_tau),
+            k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
+        }
+    }
+
+    /// Recomputes every lane when any lane's `dt` differs from the cached one.
+    #[inline]
+    fn refresh(&mut self, dt: T, c: &Coefficients<T>) {
+        if dt.simd_ne(self.dt).any() {
+            *self = Self::compute(dt, c);
+        }
+    }
+}
+
 /// Square-root multiplicative error-state Kalman filter (see the module documentation).
 ///
 /// State: the strapdown quaternion (quasi-inertial frame), the earth-frame correction `c`
@@ -333,6 +393,7 @@ pub struct SqrtEskf<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    per_dt: PerDt<T>,
 }
 
 impl<T: Lane> SqrtEskf<T> {
@@ -345,6 +406,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// the screening limits are those of the first set.
     pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
         let coef = Coefficients::new(p);
+        let per_dt = PerDt::new(&coef);
         let zero = T::zero();
         Self {
             state: State {
@@ -379,6 +441,7 @@ impl<T: Lane> SqrtEskf<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            per_dt,
         }
     }
 
@@ -393,7 +456,7 @@ impl<T: Lane> SqrtEskf<T> {
         (Quat::from_heading(st.heading_offset) * st.correction * st.strapdown).normalize()
     }
 
-    /// The covariance factor `S` (lower triangular after each time update) of the error
+    /// The upper-triangular covariance factor `S` of the error
     /// state `[δθ (rad, earth frame of q6), δb (rad/s, sensor frame)]`: `P = S·Sᵀ`.
     pub fn covariance_factor(&self) -> &Mat<T, 6, 6> {
         &self.state.factor
@@ -435,88 +498,76 @@ impl<T: Lane> SqrtEskf<T> {
         self.state.heading_offset
     }
 
-    /// Square-root time update: `S ← tria([F·S, G·Q^½])` with `F = [[I, −R·dt], [0, I]]`,
+    /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
+    /// `F·S = [[A, B − dt·R·D], [0, D]]` is still upper triangular, so only `B` changes
+    /// (`D` upper triangular: 18 products), and the diagonal process noise
     /// `G·Q^½ = diag(σ_θ·√dt·I, σ_b·√dt·I)` (the earth-frame attitude noise is isotropic,
-    /// `R·Rᵀ = I`), plus extra standard deviations on `δθ_x, δθ_y` and on `δb`
-    /// (start-up and re-acquisition).
+    /// `R·Rᵀ = I`) is folded in by [`add_diagonal_noise`], plus extra standard deviations on
+    /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition).
     fn time_update(&mut self, r: &Mat<T, 3, 3>, dt: T, extra_tilt_std: T, extra_bias_std: T) {
-        let mut a = [[T::zero(); 12]; 6];
-        let s = &self.state.factor;
-        for i in 0..6 {
-            for j in 0..6 {
-                let mut v = s.m[i][j];
-                if i < 3 {
-                    // Row i of F·S: S_ij − dt·Σ_k R_ik·S_(3+k)j.
-                    for k in 0..3 {
-                        v -= dt * r.m[i][k] * s.m[3 + k][j];
-                    }
+        let s = &mut self.state.factor;
+        for i in 0..3 {
+            for j in 3..6 {
+                let mut v = T::zero();
+                for k in 3..=j {
+                    v += r.m[i][k - 3] * s.m[k][j];
                 }
-                a[i][j] = v;
+                s.m[i][j] -= dt * v;
             }
         }
-        let sdt = dt.sqrt();
-        let qt = self.coef.gyr_noise * sdt;
-        let qb = self.coef.bias_walk * sdt;
-        for i in 0..3 {
-            a[i][6 + i] = qt;
-            a[3 + i][9 + i] = qb;
-        }
-        // Re-acquisition noise is independent of the gyro noise: add it in quadrature.
-        for i in 0..2 {
-            a[i][6 + i] = (qt * qt + extra_tilt_std * extra_tilt_std).sqrt();
-        }
-        for i in 0..3 {
-            a[3 + i][9 + i] = (qb * qb + extra_bias_std * extra_bias_std).sqrt();
-        }
-        self.state.factor = triangularize(a);
+        let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
+        // Re-acquisition noise is independent of the gyro noise: add it in quadrature (only
+        // when a lane has some: `√(q²) = q` exactly, so skipping changes nothing).
+        let (qt_xy, qb) =
+            if (extra_tilt_std.simd_ne(T::zero()) | extra_bias_std.simd_ne(T::zero())).any() {
+                (
+                    (qt * qt + extra_tilt_std * extra_tilt_std).sqrt(),
+                    (qb * qb + extra_bias_std * extra_bias_std).sqrt(),
+                )
+            } else {
+                (qt, qb)
+            };
+        add_diagonal_noise(s, &[qt_xy, qt_xy, qt, qb, qb, qb]);
     }
 
-    /// Potter's square-root scalar update with measurement row `h`, innovation `nu` and
+    /// Carlson's square-root scalar update ([`carlson_update`]: the factor stays upper
+    /// triangular) with measurement row `h` (zero before index `FIRST`), innovation `nu` and
     /// variance `r`, applied where `apply`; the χ² gate (`gate` standard deviations) is
     /// tested here. Returns (state correction `δx`, lanes accepted).
-    fn potter(&mut self, h: [T; 6], nu: T, r: T, gate: T, apply: T::Mask) -> ([T; 6], T::Mask) {
-        let s = &self.state.factor;
-        let f: [T; 6] = core::array::from_fn(|j| {
-            let mut v = T::zero();
-            for (i, hi) in h.iter().enumerate() {
-                v += s.m[i][j] * *hi;
-            }
-            v
-        });
-        let mut alpha = r;
-        for fj in f {
-            alpha += fj * fj;
-        }
-        let sf: [T; 6] = core::array::from_fn(|i| {
-            let mut v = T::zero();
-            for (j, fj) in f.iter().enumerate() {
-                v += s.m[i][j] * *fj;
-            }
-            v
-        });
+    fn scalar_update<const FIRST: usize>(
+        &mut self,
+        h: [T; 6],
+        nu: T,
+        r: T,
+        gate: T,
+        apply: T::Mask,
+    ) -> ([T; 6], T::Mask) {
+        let (s_new, sf, alpha) = carlson_update::<T, FIRST>(&self.state.factor, &h, r);
         let in_gate = (nu * nu).simd_le(gate * gate * alpha);
-        let ok = apply & alpha.simd_gt(T::zero()) & alpha.is_finite() & nu.is_finite();
-        let inv_alpha = T::one() / T::select(ok, alpha, T::one());
-        let gamma = T::one() / (T::one() + (r * inv_alpha).sqrt());
+        // With `r > 0` and a finite `α` (hence finite `f`), every entry of the new factor is
+        // finite (`|W_jj| ≤ 1`, `W_ij` bounded): checking `α` and `ν` is enough.
+        let ok = apply & r.simd_gt(T::zero()) & alpha.is_finite() & nu.is_finite();
         let accept = ok & in_gate;
-        let mut s_new = *s;
+        let factor = &mut self.state.factor;
         for i in 0..6 {
-            for j in 0..6 {
-                s_new.m[i][j] -= gamma * inv_alpha * sf[i] * f[j];
+            for j in i..6 {
+                factor.m[i][j] = T::select(accept, s_new.m[i][j], factor.m[i][j]);
             }
         }
-        let accept = accept & s_new.is_finite();
-        self.state.factor = Mat::select(accept, &s_new, &self.state.factor);
-        let dx = core::array::from_fn(|i| T::select(accept, sf[i] * inv_alpha * nu, T::zero()));
+        let k = nu / T::select(accept, alpha, T::one());
+        let dx = core::array::from_fn(|i| T::select(accept, sf[i] * k, T::zero()));
         (dx, accept)
     }
 
     /// Injects an error-state correction into `c` and `b̂` (then the error is zero again).
-    fn inject(&mut self, dx: [T; 6]) {
+    /// Lanes that did not accept the update keep `c` and `b̂` bit for bit (no renormalisation),
+    /// so whether the update ran at all — it is skipped when no lane needs it — is invisible.
+    fn inject(&mut self, dx: [T; 6], accepted: T::Mask) {
+        let st = &mut self.state;
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
-        self.state.correction =
-            (Quat::from_rotation_vector(dtheta) * self.state.correction).normalize();
-        self.state.bias += Vec3::new(dx[3], dx[4], dx[5]);
+        let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).normalize();
+        st.correction = Quat::select(accepted, corrected, st.correction);
+        st.bias = Vec3::select(accepted, st.bias + Vec3::new(dx[3], dx[4], dx[5]), st.bias);
     }
 
     /// Initialisation from the first usable sample: inclination from gravity, heading
@@ -569,7 +620,7 @@ impl<T: Lane> SqrtEskf<T> {
     fn detect_rest(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
         let c = &self.coef;
         let st = &mut self.state;
-        let k_rest = lowpass_gain(s.dt, c.rest_tau);
+        let k_rest = self.per_dt.k_rest;
         st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
         let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
         st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
@@ -601,7 +652,7 @@ impl<T: Lane> SqrtEskf<T> {
         // the inclination and the bias covariance. During the start-up phase the inclination
         // covariance is inflated continuously (in total by `reacquire_std²`) so a wrong first
         // sample is corrected by the attitude, not absorbed by the bias.
-        let c = self.coef;
+        let c = &self.coef;
         let reacquire = self.state.acc_rejected_time.simd_gt(c.acc_reject_time);
         let starting = self.state.age.simd_lt(c.startup_time);
         let extra = T::select(
@@ -631,10 +682,16 @@ impl<T: Lane> SqrtEskf<T> {
         let st = &mut self.state;
         // The low-pass time constant grows linearly over the start-up phase, so the first
         // seconds follow the accelerometer (and a wrong start is not frozen into the average).
-        let tau = self.coef.tau_acc * (st.age / self.coef.startup_time).min(T::one());
+        let ramp = (st.age / self.coef.startup_time).min(T::one());
+        let tau = self.coef.tau_acc * ramp;
         // Two equal first-order stages (τ/2 each): a critically damped second-order low-pass
-        // whose mean delay is still τ, with −40 dB/decade above its corner.
-        let k_acc = lowpass_gain(s.dt, tau * T::from_f64(0.5));
+        // whose mean delay is still τ, with −40 dB/decade above its corner. After the
+        // start-up (ramp = 1 in every lane) the gain is the cached one.
+        let k_acc = if ramp.simd_lt(T::one()).any() {
+            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+        } else {
+            self.per_dt.k_acc
+        };
         let a_i = st.strapdown.rotate(acc_raw);
         let rg = st.strapdown.to_rotation_matrix();
         st.acc_lp1 = Vec3::select(
@@ -660,37 +717,15 @@ impl<T: Lane> SqrtEskf<T> {
     /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
     fn correct_inclination(&mut self, s: &Screened<T>, tau: T, starting: T::Mask) {
         let zero = T::zero();
-        let one = T::one();
-        let r_acc = self.coef.acc_var / T::select(s.step, s.dt, one);
+        let r_acc = self.per_dt.r_acc;
         let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
         let mut any_accept = <T::Mask as Mask>::splat(false);
         let mut applied = <T::Mask as Mask>::splat(false);
-        for axis in 0..2 {
-            let rc = self.state.correction.to_rotation_matrix();
-            let rbar = rc * self.state.rot_lp;
-            let (v, v_ok) = self
-                .state
-                .correction
-                .rotate(self.state.acc_lp)
-                .try_normalize();
-            // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
-            let sxy = (v.x * v.x + v.y * v.y).sqrt();
-            let angle = sxy.atan2(v.z);
-            let scale = T::select(
-                sxy.simd_gt(zero),
-                angle / T::select(sxy.simd_gt(zero), sxy, one),
-                one,
-            );
-            let eps = [v.y * scale, -v.x * scale];
-            let mut h = [zero; 6];
-            h[axis] = one;
-            for k in 0..3 {
-                h[3 + k] = tau * rbar.m[axis][k];
-            }
-            let apply = s.acc_ok & v_ok;
-            let (dx, acc) = self.potter(h, eps[axis], r_acc, gate, apply);
-            self.inject(dx);
-            any_accept |= acc;
+        for (accepted, apply) in [
+            self.inclination_axis::<0>(s, tau, r_acc, gate),
+            self.inclination_axis::<1>(s, tau, r_acc, gate),
+        ] {
+            any_accept |= accepted;
             applied |= apply;
         }
         let gated = applied & !any_accept;
@@ -698,17 +733,65 @@ impl<T: Lane> SqrtEskf<T> {
         self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
     }
 
-    /// Bias at rest: the low-passed gyro measures `b` directly.
-    fn correct_bias_at_rest(&mut self, s: &Screened<T>, rest: T::Mask) {
-        let r_rest = self.coef.rest_var / T::select(s.step, s.dt, T::one());
-        let big = T::from_f64(1e6);
+    /// One horizontal component `AXIS` of the inclination update (the second sees the first's
+    /// correction). Returns (lanes accepted, lanes with a usable measurement).
+    fn inclination_axis<const AXIS: usize>(
+        &mut self,
+        s: &Screened<T>,
+        tau: T,
+        r_acc: T,
+        gate: T,
+    ) -> (T::Mask, T::Mask) {
+        let zero = T::zero();
+        let one = T::one();
+        let rc = self.state.correction.to_rotation_matrix();
+        let rbar = rc * self.state.rot_lp;
+        let (v, v_ok) = self
+            .state
+            .correction
+            .rotate(self.state.acc_lp)
+            .try_normalize();
+        // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
+        let sxy = (v.x * v.x + v.y * v.y).sqrt();
+        let angle = sxy.atan2(v.z);
+        let scale = T::select(
+            sxy.simd_gt(zero),
+            angle / T::select(sxy.simd_gt(zero), sxy, one),
+            one,
+        );
+        let eps = [v.y * scale, -v.x * scale];
+        let mut h = [zero; 6];
+        h[AXIS] = one;
         for k in 0..3 {
-            let mut h = [T::zero(); 6];
-            h[3 + k] = T::one();
-            let z = self.state.rest_gyr_lp.to_array()[k] - self.state.bias.to_array()[k];
-            let (dx, _) = self.potter(h, z, r_rest, big, rest);
-            self.inject(dx);
+            h[3 + k] = tau * rbar.m[AXIS][k];
         }
+        let apply = s.acc_ok & v_ok;
+        let (dx, accepted) = self.scalar_update::<AXIS>(h, eps[AXIS], r_acc, gate, apply);
+        self.inject(dx, accepted);
+        (accepted, apply)
+    }
+
+    /// Bias at rest: the low-passed gyro measures `b` directly.
+    fn correct_bias_at_rest(&mut self, rest: T::Mask) {
+        // Every lane not at rest discards these updates: skipping them when no lane is at
+        // rest changes no result.
+        if !rest.any() {
+            return;
+        }
+        let r_rest = self.per_dt.r_rest;
+        self.rest_axis::<3>(r_rest, rest);
+        self.rest_axis::<4>(r_rest, rest);
+        self.rest_axis::<5>(r_rest, rest);
+    }
+
+    /// The at-rest measurement of bias component `STATE − 3` (`H = e_STATE`).
+    fn rest_axis<const STATE: usize>(&mut self, r_rest: T, rest: T::Mask) {
+        let mut h = [T::zero(); 6];
+        h[STATE] = T::one();
+        let k = STATE - 3;
+        let z = self.state.rest_gyr_lp.to_array()[k] - self.state.bias.to_array()[k];
+        let (dx, accepted) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
+        self.inject(dx, accepted);
     }
 
     /// Heading offset from the magnetometer (9D): disturbance detection against the learned
@@ -717,7 +800,7 @@ impl<T: Lane> SqrtEskf<T> {
         let zero = T::zero();
         let one = T::one();
         let dt = s.dt;
-        let c = self.coef;
+        let c = &self.coef;
         self.state.heading_offset_var +=
             (c.heading_walk_var + c.heading_rate_var * w.norm_squared()) * dt + heading_growth;
         let q6 = self.quat6();
@@ -730,7 +813,7 @@ impl<T: Lane> SqrtEskf<T> {
         };
         let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
         let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
-        let k_ref = lowpass_gain(dt, c.mag_ref_tau);
+        let k_ref = self.per_dt.k_ref;
         let mut nf = f;
         nf.candidate_norm = T::select(
             ok_cand,
@@ -764,7 +847,7 @@ impl<T: Lane> SqrtEskf<T> {
         let st = &mut self.state;
         let q9 = Quat::from_heading(st.heading_offset) * q6;
         let (psi, psi_ok) = magnetic_heading_error(q9, s.mag);
-        let r_mag = c.mag_var / T::select(s.step, dt, one);
+        let r_mag = self.per_dt.r_mag;
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
         let apply = use_mag & psi_ok & !fresh;
@@ -809,70 +892,32 @@ fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
     v
 }
 
-/// Lower-triangular `L` (non-negative diagonal) with `L·Lᵀ = A·Aᵀ`, by Householder
-/// reflections applied to the rows of `A` from the right. A zero row leaves a zero column.
-fn triangularize<T: Lane>(mut a: [[T; 12]; 6]) -> Mat<T, 6, 6> {
-    let zero = T::zero();
-    for i in 0..6 {
-        let mut n2 = zero;
-        for j in i..12 {
-            n2 += a[i][j] * a[i][j];
-        }
-        let norm = n2.sqrt();
-        let alpha = T::select(a[i][i].simd_ge(zero), -norm, norm);
-        let mut v = [zero; 12];
-        v[i] = a[i][i] - alpha;
-        v[(i + 1)..12].copy_from_slice(&a[i][(i + 1)..12]);
-        let mut vtv = zero;
-        for x in &v[i..] {
-            vtv += *x * *x;
-        }
-        let ok = vtv.simd_gt(zero) & vtv.is_finite();
-        let beta = T::select(ok, T::from_f64(2.0) / T::select(ok, vtv, T::one()), zero);
-        for row in a.iter_mut().skip(i) {
-            let mut d = zero;
-            for j in i..12 {
-                d += row[j] * v[j];
-            }
-            let d = d * beta;
-            for j in i..12 {
-                row[j] -= d * v[j];
-            }
-        }
-        // Exact zeros right of the diagonal (the reflection makes them zero up to rounding).
-        for x in &mut a[i][(i + 1)..] {
-            *x = zero;
-        }
-    }
-    // Flip column signs so the diagonal is non-negative (L·Lᵀ is unchanged).
-    let mut l = Mat::zeros();
-    for j in 0..6 {
-        let neg = a[j][j].simd_lt(zero);
-        for i in j..6 {
-            l.m[i][j] = T::select(neg, -a[i][j], a[i][j]);
-        }
-    }
-    l
-}
-
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        self.per_dt.refresh(s.dt, &self.coef);
         // Lanes that cannot step keep their whole state; lanes not yet initialised only
-        // wait for a usable accelerometer.
-        let before = self.state;
+        // wait for a usable accelerometer. When every lane steps from a running state there
+        // is nothing to restore, and the state is not copied.
+        let before = if (s.step & self.state.initialized).all() {
+            None
+        } else {
+            Some(self.state)
+        };
         let acc_raw = s.acc * s.acc_norm;
         let fresh = self.initialise(&s, acc_raw);
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
         self.correct_inclination(&s, tau, starting);
-        self.correct_bias_at_rest(&s, rest);
+        self.correct_bias_at_rest(rest);
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth, fresh);
         }
-        let keep = s.step & (before.initialized | self.state.initialized);
-        self.state = Select::select(keep, &self.state, &before);
+        if let Some(before) = before {
+            let keep = s.step & (before.initialized | self.state.initialized);
+            self.state = Select::select(keep, &self.state, &before);
+        }
     }
     fn set_quat(&mut self, q: Quat<T>) {
         // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`. A running

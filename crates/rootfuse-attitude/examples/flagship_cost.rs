@@ -1,0 +1,107 @@
+//! Cost per update of the flagship ([`SqrtEskf`], 9D, default parameters) in one precision
+//! or lane width: for timing whole processes side by side and for
+//! `valgrind --tool=callgrind` instruction counts (docs/flagship_cost.md).
+//!
+//! ```sh
+//! cargo build --release -p rootfuse-attitude --example flagship_cost
+//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES]
+//! ```
+//! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (286 Hz like BROAD):
+//! rests of 4 s between 10 s of rotation about a wandering axis, gravity and a dipping field
+//! rotated into the sensor frame, plus a little deterministic noise; every lane runs the same
+//! data. It is built before the clock starts, so only `update` is timed. Prints one JSON line:
+//! the best ns per channel-update over PASSES passes and a checksum of the final orientation.
+
+use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
+use rootfuse_lane::wide;
+use std::time::Instant;
+
+const RATE_HZ: f64 = 286.0;
+
+/// `n` samples (sensor frame, SI units) of the motion described in the module docs.
+fn motion(n: usize) -> Vec<ImuSample<f64>> {
+    let dt = 1.0 / RATE_HZ;
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut noise = move |scale: f64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * scale
+    };
+    let mut q = Quat::<f64>::from_euler_zyx(0.3, 0.1, -0.2);
+    (0..n)
+        .map(|i| {
+            let t = i as f64 * dt;
+            let moving = t % 14.0 >= 4.0;
+            let w = if moving {
+                Vec3::new((0.7 * t).sin(), (0.5 * t).cos(), 0.6 * (0.3 * t).sin()) * 1.5
+            } else {
+                Vec3::zero()
+            };
+            q = (q * Quat::from_rotation_vector(w * dt)).normalize();
+            let acc = q.rotate_inverse(Vec3::new(0.0, 0.0, 9.81));
+            let mag = q.rotate_inverse(Vec3::new(0.0, 20.0, -40.0));
+            let mut n3 = |s: f64| Vec3::new(noise(s), noise(s), noise(s));
+            let bias = Vec3::new(0.01, -0.005, 0.002);
+            ImuSample::new(w + bias + n3(0.002), acc + n3(0.05), mag + n3(0.3))
+        })
+        .collect()
+}
+
+fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize) -> (f64, f64) {
+    let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
+    let input: Vec<ImuSample<T>> = data
+        .iter()
+        .map(|s| ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)))
+        .collect();
+    let dt = T::from_f64(1.0 / RATE_HZ);
+    let mut best = f64::INFINITY;
+    let mut checksum = 0.0;
+    for _ in 0..passes.max(1) {
+        let mut f = SqrtEskf::<T>::new(&SqrtEskfParams::default());
+        let start = Instant::now();
+        for s in std::hint::black_box(&input) {
+            f.update(s, dt);
+        }
+        best = best.min(start.elapsed().as_secs_f64());
+        let q = f.quat();
+        checksum = (0..T::LANES)
+            .map(|l| {
+                [q.w, q.x, q.y, q.z]
+                    .iter()
+                    .map(|x| x.extract(l).into())
+                    .sum::<f64>()
+            })
+            .sum();
+    }
+    (
+        best * 1e9 / (input.len() * T::LANES).max(1) as f64,
+        checksum,
+    )
+}
+
+fn main() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES]";
+    let mode = args.first().ok_or(usage)?;
+    let number = |i: usize, default: usize| -> Result<usize, String> {
+        args.get(i)
+            .map_or(Ok(default), |a| a.parse().map_err(|_| usage.to_string()))
+    };
+    let (samples, passes) = (number(1, 100_000)?, number(2, 3)?);
+    let data = motion(samples);
+    let (ns, checksum) = match mode.as_str() {
+        "f32" => run::<f32>(&data, passes),
+        "f64" => run::<f64>(&data, passes),
+        "f32x8" => run::<wide::f32x8>(&data, passes),
+        "f64x4" => run::<wide::f64x4>(&data, passes),
+        // Only the input: the baseline subtracted from instruction counts.
+        "none" => (0.0, std::hint::black_box(&data).len() as f64),
+        _ => return Err(usage.into()),
+    };
+    println!(
+        "{{\"mode\": \"{mode}\", \"samples\": {samples}, \"ns_per_channel_update\": {ns:.2}, \"checksum\": {checksum}}}"
+    );
+    Ok(())
+}

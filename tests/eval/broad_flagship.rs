@@ -1,0 +1,90 @@
+//! The flagship on every BROAD trial (not only the four of `broad.rs`), 9D and 6D: total RMSE
+//! in f64 pinned to 0.01°, so that a change of the update mechanics (issue #18: cost per
+//! update) is seen to leave the accuracy where it was, and f32 within 0.01° of f64 on every
+//! trial. Parameters: the defaults.
+use crate::common::broad_dir;
+use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse_attitude::{Dof, Recording};
+use rootfuse_eval::metrics::{Alignment, evaluate};
+use rootfuse_io::read_dir;
+
+/// Per trial (file name order): total RMSE in degrees for 9D and 6D in f64, as the flagship
+/// gave them before the cost-per-update work (commit 4eb2ffe, `rootfuse run --precision f64`
+/// + `rootfuse eval --json`). The test prints its own numbers in this form when it fails.
+#[rustfmt::skip]
+const PINNED: &[[f64; 2]] = &[
+    [1.247, 0.609], // 02_undisturbed_slow_rotation_B
+    [1.467, 3.927], // 04_undisturbed_slow_rotation_with_breaks_A
+    [1.620, 1.534], // 07_undisturbed_fast_rotation_B
+    [4.236, 7.866], // 08_undisturbed_fast_rotation_with_breaks_A
+    [1.232, 1.094], // 10_undisturbed_slow_translation_A
+    [1.516, 1.463], // 12_undisturbed_slow_translation_C
+    [0.714, 0.652], // 16_undisturbed_fast_translation_B
+    [0.808, 0.860], // 18_undisturbed_fast_translation_with_breaks_B
+    [1.118, 0.848], // 24_disturbed_tapping_A
+    [7.053, 1.781], // 27_disturbed_phone_vibration_B
+    [1.997, 4.624], // 29_disturbed_stationary_magnet_B
+    [2.398, 3.040], // 31_disturbed_stationary_magnet_D
+    [3.302, 2.375], // 33_disturbed_attached_magnet_2cm
+    [2.069, 2.976], // 35_disturbed_attached_magnet_4cm
+];
+
+fn total(rec: &Recording, dof: u8, f32_lanes: bool) -> f64 {
+    let p = SqrtEskfParams {
+        dof: Dof::from_count(dof).expect("6 or 9"),
+        ..SqrtEskfParams::default()
+    };
+    let est = if f32_lanes {
+        rec.estimate(&mut SqrtEskf::<f32>::new(&p))
+    } else {
+        rec.estimate(&mut SqrtEskf::<f64>::new(&p))
+    };
+    let align = if dof == 9 {
+        Alignment::NineD
+    } else {
+        Alignment::SixD
+    };
+    evaluate(rec, &est, align)
+        .expect("BROAD trials have truth")
+        .total
+}
+
+#[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
+fn flagship_rmse_pinned_on_every_trial() {
+    let Some(dir) = broad_dir() else { return };
+    let recs: Vec<Recording> = read_dir(&dir).unwrap();
+    assert_eq!(recs.len(), 14, "the 14 shared BROAD trials");
+    let mut failures = Vec::new();
+    let mut table = String::new();
+    for (rec, pinned) in recs.iter().zip(PINNED) {
+        let got = [total(rec, 9, false), total(rec, 6, false)];
+        let got32 = [total(rec, 9, true), total(rec, 6, true)];
+        table += &format!("    [{:.3}, {:.3}], // {}\n", got[0], got[1], rec.name);
+        for k in 0..2 {
+            let dof = [9, 6][k];
+            if (got[k] - pinned[k]).abs() > 0.01 {
+                failures.push(format!(
+                    "{} {dof}D f64: {:.3} vs {:.3} before",
+                    rec.name, got[k], pinned[k]
+                ));
+            }
+            // f32 makes the same update as f64 (positive definite by construction).
+            if (got32[k] - got[k]).abs() > 0.01 {
+                failures.push(format!(
+                    "{} {dof}D f32 {:.3} vs f64 {:.3}",
+                    rec.name, got32[k], got[k]
+                ));
+            }
+        }
+    }
+    assert_eq!(PINNED.len(), recs.len(), "every trial is pinned");
+    assert!(
+        failures.is_empty(),
+        "flagship BROAD RMSE changed:\n{}\nnow (f64):\n{table}",
+        failures.join("\n")
+    );
+}
