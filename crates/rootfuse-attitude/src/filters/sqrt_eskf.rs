@@ -163,8 +163,15 @@ params! {
         rest_time: f64 = 1.5, "s", [0.0, 100.0];
         /// Noise density of the at-rest bias measurement (`r = rest_noise²/dt`).
         rest_noise: f64 = 0.0004, "rad/s·√s", [1e-9, 10.0];
-        /// Initial standard deviation of each gyro-bias component.
+        /// Initial standard deviation of each gyro-bias component (also what the bias
+        /// covariance is re-inflated by on a detected bias step or a re-acquisition).
         init_bias_std: f64 = 0.01, "rad/s", [1e-9, 10.0];
+        /// Time constant of the running mean of the inclination innovation that detects a
+        /// gyro-bias step.
+        bias_step_window: f64 = 2.0, "s", [1e-3, 100.0];
+        /// A running innovation mean beyond this many of its standard deviations (2 degrees
+        /// of freedom) is a gyro-bias step: the bias covariance is re-inflated. 0 disables.
+        bias_step_gate: f64 = 8.0, "1", [0.0, 1e6];
         /// Initial standard deviation of the inclination error after the first sample.
         init_tilt_std: f64 = 0.05, "rad", [1e-9, 10.0];
         /// Random-walk density of the 9D heading offset beyond the 6D heading drift
@@ -235,6 +242,13 @@ lane_state! {
         rest_timer: T,
         /// How long (s) every inclination measurement has been gated.
         acc_rejected_time: T,
+        /// Running mean (time constant `bias_step_window`) of the two horizontal inclination
+        /// innovations before correction, rad.
+        innovation_mean_x: T,
+        innovation_mean_y: T,
+        /// A gyro-bias step was detected by the last sample: the next time update re-inflates
+        /// the bias covariance.
+        bias_step: T::Mask,
         /// Time since initialisation, s.
         age: T,
         field: FieldReference<T>,
@@ -267,6 +281,10 @@ lane_state! {
         rest_var: T,
         init_bias_std: T,
         init_tilt_std: T,
+        bias_step_window: T,
+        /// `acc_noise²/(2·bias_step_window)·bias_step_gate²`: the squared norm of the running
+        /// innovation mean beyond which a bias step is declared (0: never).
+        bias_step_threshold: T,
         heading_walk_var: T,
         heading_rate_var: T,
         mag_var: T,
@@ -296,6 +314,14 @@ impl<T: Lane> Coefficients<T> {
             rest_var: p.coef(|p| p.rest_noise * p.rest_noise),
             init_bias_std: p.coef(|p| p.init_bias_std),
             init_tilt_std: p.coef(|p| p.init_tilt_std),
+            bias_step_window: p.coef(|p| p.bias_step_window),
+            bias_step_threshold: p.coef(|p| {
+                // White innovation of density acc_noise² averaged with time constant T has
+                // variance acc_noise²/(2T) per axis.
+                p.acc_noise * p.acc_noise / (2.0 * p.bias_step_window)
+                    * p.bias_step_gate
+                    * p.bias_step_gate
+            }),
             heading_walk_var: p.coef(|p| p.heading_walk * p.heading_walk),
             heading_rate_var: p.coef(|p| p.heading_rate_noise * p.heading_rate_noise),
             mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
@@ -362,6 +388,9 @@ impl<T: Lane> SqrtEskf<T> {
                 rest_acc_lp: Vec3::zero(),
                 rest_timer: zero,
                 acc_rejected_time: zero,
+                innovation_mean_x: zero,
+                innovation_mean_y: zero,
+                bias_step: <T::Mask as Mask>::splat(false),
                 age: zero,
                 field: FieldReference {
                     norm: zero,
@@ -531,8 +560,15 @@ impl<T: Lane> SqrtEskf<T> {
             let zero = T::zero();
             let one = T::one();
             let (tilt, _) = tilt_from_acc(s.acc);
-            // A preset orientation (strapdown still the identity) is kept; otherwise gravity.
-            let start = Quat::select(st.preset, st.correction, tilt);
+            // Until now the gyroscope was integrated from the identity (or the preset
+            // orientation). A preset orientation, carried by the gyro, is kept; otherwise the
+            // inclination comes from gravity and the heading the gyro has integrated is kept
+            // (the heading of `q_gyr ⊗ tilt*`, as the metrics define it), so the estimate
+            // does not jump about earth-z.
+            let integrated = st.correction * st.strapdown;
+            let e = integrated * tilt.conj();
+            let levelled = Quat::from_heading(T::from_f64(2.0) * e.z.atan2(e.w)) * tilt;
+            let start = Quat::select(st.preset, integrated, levelled).normalize();
             st.correction = Quat::select(fresh, start, st.correction);
             st.strapdown = Quat::select(fresh, Quat::identity(), st.strapdown);
             st.acc_lp = Vec3::select(fresh, acc_raw, st.acc_lp);
@@ -541,7 +577,7 @@ impl<T: Lane> SqrtEskf<T> {
             st.rot_lp1 = Mat::select(fresh, &Mat::identity(), &st.rot_lp1);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
             st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
-            let (psi, psi_ok) = magnetic_heading_error(tilt, s.mag);
+            let (psi, psi_ok) = magnetic_heading_error(start, s.mag);
             let mag_fresh = fresh & s.mag_ok & psi_ok;
             st.heading_offset = T::select(
                 mag_fresh & !st.preset,
@@ -613,7 +649,7 @@ impl<T: Lane> SqrtEskf<T> {
                 zero,
             ),
         );
-        let extra_b = T::select(reacquire, c.init_bias_std, zero);
+        let extra_b = T::select(reacquire | self.state.bias_step, c.init_bias_std, zero);
         self.state.age += dt;
         // The 9D heading offset must follow the 6D heading drift: its variance grows by
         // what the time update adds to the 6D heading variance (gyro noise and the
@@ -655,6 +691,58 @@ impl<T: Lane> SqrtEskf<T> {
         tau
     }
 
+    /// The horizontal rotation vector (earth frame, rad) that turns the low-passed specific
+    /// force, brought to the earth frame by `c`, onto up; false where it has no direction.
+    fn inclination_innovation(&self) -> ([T; 2], T::Mask) {
+        let (zero, one) = (T::zero(), T::one());
+        let (v, v_ok) = self
+            .state
+            .correction
+            .rotate(self.state.acc_lp)
+            .try_normalize();
+        // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
+        let sxy = (v.x * v.x + v.y * v.y).sqrt();
+        let angle = sxy.atan2(v.z);
+        let scale = T::select(
+            sxy.simd_gt(zero),
+            angle / T::select(sxy.simd_gt(zero), sxy, one),
+            one,
+        );
+        ([v.y * scale, -v.x * scale], v_ok)
+    }
+
+    /// Gyro-bias step detection by innovation consistency: a bias step makes the strapdown
+    /// frame drift, and the inclination corrections then chase a persistent, one-signed
+    /// innovation, while a consistent filter's innovations average out. The running mean of
+    /// the innovation (time constant `bias_step_window`) is compared with what white
+    /// innovations of density `acc_noise²` leave in it; beyond `bias_step_gate` standard
+    /// deviations the next time update re-inflates the bias covariance by `init_bias_std`,
+    /// and the lag-aware inclination measurement (`H` contains `τ·R̄`) then learns the new
+    /// bias within seconds rather than at the random-walk rate. Not during start-up.
+    fn detect_bias_step(&mut self, s: &Screened<T>, starting: T::Mask) {
+        let (eps, ok) = self.inclination_innovation();
+        let c = &self.coef;
+        let st = &mut self.state;
+        let use_it = s.acc_ok & ok & !starting;
+        let k = lowpass_gain(s.dt, c.bias_step_window);
+        let mx = st.innovation_mean_x + (eps[0] - st.innovation_mean_x) * k;
+        let my = st.innovation_mean_y + (eps[1] - st.innovation_mean_y) * k;
+        let step = use_it
+            & c.bias_step_threshold.simd_gt(T::zero())
+            & (mx * mx + my * my).simd_gt(c.bias_step_threshold);
+        // After a detection the mean starts again from zero, so one step inflates once per
+        // window at most.
+        let zero = T::zero();
+        st.innovation_mean_x = T::select(step, zero, T::select(use_it, mx, st.innovation_mean_x));
+        st.innovation_mean_y = T::select(step, zero, T::select(use_it, my, st.innovation_mean_y));
+        st.bias_step = step;
+    }
+
+    /// Per lane: the last sample detected a gyro-bias step (see [`SqrtEskfParams::bias_step_gate`]).
+    pub fn bias_step_detected(&self) -> T::Mask {
+        self.state.bias_step
+    }
+
     /// Inclination: two sequential scalar updates on the horizontal error components.
     /// The low-passed vector measures δθ + τ·R̄·δb with R̄ = R(c)·LP(R(q_strapdown)): the
     /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
@@ -668,20 +756,7 @@ impl<T: Lane> SqrtEskf<T> {
         for axis in 0..2 {
             let rc = self.state.correction.to_rotation_matrix();
             let rbar = rc * self.state.rot_lp;
-            let (v, v_ok) = self
-                .state
-                .correction
-                .rotate(self.state.acc_lp)
-                .try_normalize();
-            // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
-            let sxy = (v.x * v.x + v.y * v.y).sqrt();
-            let angle = sxy.atan2(v.z);
-            let scale = T::select(
-                sxy.simd_gt(zero),
-                angle / T::select(sxy.simd_gt(zero), sxy, one),
-                one,
-            );
-            let eps = [v.y * scale, -v.x * scale];
+            let (eps, v_ok) = self.inclination_innovation();
             let mut h = [zero; 6];
             h[axis] = one;
             for k in 0..3 {
@@ -858,21 +933,25 @@ fn triangularize<T: Lane>(mut a: [[T; 12]; 6]) -> Mat<T, 6, 6> {
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
-        // Lanes that cannot step keep their whole state; lanes not yet initialised only
-        // wait for a usable accelerometer.
+        // Lanes that cannot step keep their whole state; lanes not yet initialised integrate
+        // the gyroscope (strapdown only) until the first usable accelerometer sample.
         let before = self.state;
         let acc_raw = s.acc * s.acc_norm;
         let fresh = self.initialise(&s, acc_raw);
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
+        self.detect_bias_step(&s, starting);
         self.correct_inclination(&s, tau, starting);
         self.correct_bias_at_rest(&s, rest);
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth, fresh);
         }
         let keep = s.step & (before.initialized | self.state.initialized);
+        let strapdown = self.state.strapdown;
         self.state = Select::select(keep, &self.state, &before);
+        let integrating = s.step & !self.state.initialized;
+        self.state.strapdown = Quat::select(integrating, strapdown, self.state.strapdown);
     }
     fn set_quat(&mut self, q: Quat<T>) {
         // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`. A running
