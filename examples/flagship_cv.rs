@@ -27,8 +27,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rootfuse::attitude::filters::{LaneParams, Params, SqrtEskf, SqrtEskfParams};
-use rootfuse::attitude::smooth::forward_backward;
-use rootfuse::attitude::{Dof, ImuSample, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse::attitude::{ImuSample, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::io::read_dir;
 use rootfuse::lane::wide::f64x4;
@@ -36,8 +35,8 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-#[path = "shared/vqf.rs"]
-mod vqf;
+#[path = "shared/broad.rs"]
+mod broad;
 
 /// The tuned parameters of the 6D part (gravity, gyro, bias, rest) and their factor ranges
 /// (log-uniform, `[1/f, f]` around the centre). They decide the 6D estimate and the
@@ -140,19 +139,6 @@ fn score_f32(p: &SqrtEskfParams, rec: &Recording) -> Score {
     evaluate_pair(rec, &q9, &q6)
 }
 
-/// Forward-backward smoother: 9D total, 6D total, 9D inclination.
-fn score_offline(p: &SqrtEskfParams, rec: &Recording) -> Score {
-    let eval = |dof: Dof, align| {
-        let q = SqrtEskfParams { dof, ..p.clone() };
-        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof.uses_magnetometer())
-            .expect("sqrt-eskf has a covariance");
-        evaluate(rec, &out.quat, align).map_or([f64::NAN; 2], |r| [r.total, r.inclination])
-    };
-    let [e9, incl] = eval(Dof::Nine, Alignment::NineD);
-    let [e6, _] = eval(Dof::Six, Alignment::SixD);
-    [e9, e6, incl]
-}
-
 /// Runs `job(i)` for `i in 0..n` on two threads, with a progress bar.
 fn parallel<R: Send>(n: usize, label: &str, job: impl Fn(usize) -> R + Sync) -> Vec<R> {
     let bar = ProgressBar::new(n as u64).with_message(label.to_string());
@@ -231,7 +217,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let recs: Vec<Recording> = read_dir(&dir)?;
     let vqf: Vec<Score> = recs
         .iter()
-        .map(|r| vqf::vqf_online(&r.name))
+        .map(|r| broad::vqf_online(&r.name))
         .collect::<Result<_, _>>()?;
     // The product of `n6` 6D sets (the first the centre, the second the centre without
     // bias-step detection) and `n_mag` magnetic sets (the first the centre): candidate 0 is
@@ -286,7 +272,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
     let offline_rows = if offline {
         Some(parallel(recs.len(), "smoother", |t| {
-            score_offline(&sets[best], &recs[t])
+            broad::smoothed(&sets[best], &recs[t])
         }))
     } else {
         None

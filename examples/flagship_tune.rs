@@ -15,14 +15,13 @@
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
 use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
-use rootfuse::attitude::smooth::forward_backward;
-use rootfuse::attitude::{Dof, ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse::attitude::{ImuSample, Mask, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::io::read_dir;
 use std::path::PathBuf;
 
-#[path = "shared/vqf.rs"]
-mod vqf;
+#[path = "shared/broad.rs"]
+mod broad;
 
 fn run<T: rootfuse::Lane>(
     p: &SqrtEskfParams,
@@ -61,19 +60,6 @@ fn run<T: rootfuse::Lane>(
     (q9, q6)
 }
 
-/// Offline (forward-backward) total RMSE 9D and 6D, and the 9D inclination RMSE.
-fn smoothed(p: &SqrtEskfParams, rec: &Recording) -> [f64; 3] {
-    let eval = |dof: Dof, align| {
-        let q = SqrtEskfParams { dof, ..p.clone() };
-        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof.uses_magnetometer())
-            .expect("sqrt-eskf has a covariance");
-        evaluate(rec, &out.quat, align).map_or([f64::NAN; 2], |r| [r.total, r.inclination])
-    };
-    let [e9, incl] = eval(Dof::Nine, Alignment::NineD);
-    let [e6, _] = eval(Dof::Six, Alignment::SixD);
-    [e9, e6, incl]
-}
-
 /// Total RMSE (degrees) 9D and 6D, and inclination RMSE, per trial.
 fn score(p: &SqrtEskfParams, recs: &[Recording], f32: bool) -> Vec<[f64; 3]> {
     std::thread::scope(|scope| {
@@ -82,7 +68,7 @@ fn score(p: &SqrtEskfParams, recs: &[Recording], f32: bool) -> Vec<[f64; 3]> {
             .map(|rec| {
                 scope.spawn(move || {
                     if std::env::var_os("OFFLINE").is_some() {
-                        return smoothed(p, rec);
+                        return broad::smoothed(p, rec);
                     }
                     let (q9, q6) = if f32 {
                         run::<f32>(p, rec, |x| x as f32, f64::from)
@@ -158,7 +144,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let vqf: Vec<[f64; 3]> = recs
         .iter()
-        .map(|r| vqf::vqf_online(&r.name))
+        .map(|r| broad::vqf_online(&r.name))
         .collect::<Result<_, _>>()?;
     print_row("VQF online", &vqf, &vqf);
     match grid {

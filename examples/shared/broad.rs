@@ -1,5 +1,9 @@
-//! VQF's published scores on the 14 shared BROAD trials (the data folder's README), shared by
-//! the flagship's tuning examples.
+//! Shared by the flagship's tuning examples: VQF's published scores on the 14 shared BROAD
+//! trials (the data folder's README) and the forward-backward smoother's scores.
+use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::smooth::forward_backward;
+use rootfuse::attitude::{Dof, Recording};
+use rootfuse::eval::metrics::{Alignment, evaluate};
 
 /// VQF online RMSE (degrees): total 9D, total 6D, inclination, by trial-name prefix.
 pub const VQF_ONLINE: [(&str, [f64; 3]); 14] = [
@@ -26,4 +30,17 @@ pub fn vqf_online(name: &str) -> Result<[f64; 3], String> {
         .find(|(prefix, _)| name.starts_with(prefix))
         .map(|(_, v)| *v)
         .ok_or_else(|| format!("no VQF numbers for {name}"))
+}
+
+/// Offline (forward-backward smoother) RMSE: 9D total, 6D total, 9D inclination.
+pub fn smoothed(p: &SqrtEskfParams, rec: &Recording) -> [f64; 3] {
+    let eval = |dof: Dof, align| {
+        let q = SqrtEskfParams { dof, ..p.clone() };
+        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof.uses_magnetometer())
+            .expect("sqrt-eskf has a covariance");
+        evaluate(rec, &out.quat, align).map_or([f64::NAN; 2], |r| [r.total, r.inclination])
+    };
+    let [e9, incl] = eval(Dof::Nine, Alignment::NineD);
+    let [e6, _] = eval(Dof::Six, Alignment::SixD);
+    [e9, e6, incl]
 }
