@@ -97,8 +97,8 @@ fn score4(sets: &[SqrtEskfParams; 4], rec: &Recording) -> [Score; 4] {
     let lanes = LaneParams::per_lane(sets).expect("four sets");
     let mut f = SqrtEskf::<f64x4>::with_lane_params(&lanes);
     let v = |x: Vec3<f64>| Vec3::<f64x4>::from_f64([x.x, x.y, x.z]);
-    let mut q9 = vec![Vec::with_capacity(rec.len()); 4];
-    let mut q6 = vec![Vec::with_capacity(rec.len()); 4];
+    let mut q9: [Vec<Quat<f64>>; 4] = std::array::from_fn(|_| Vec::with_capacity(rec.len()));
+    let mut q6: [Vec<Quat<f64>>; 4] = std::array::from_fn(|_| Vec::with_capacity(rec.len()));
     for i in 0..rec.len() {
         let s = rec.sample(i);
         f.update(
