@@ -2,6 +2,7 @@
 mod configuration;
 mod filters;
 mod flagship;
+mod flagship_accuracy;
 mod frames;
 mod heading_pipeline;
 mod lsq_fusion;
