@@ -153,3 +153,54 @@ fn online_calibration_leaves_calibrated_broad_trials_alone() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Lane-generic: four channels in `f64x4` lanes give exactly the four scalar runs, and a
+/// reading that is NaN (or wildly off) in one lane changes nothing in the others.
+#[test]
+fn lanes_equal_scalar_runs_and_bad_lanes_stay_local() {
+    use wide::f64x4;
+    let recs: Vec<_> = (0..4)
+        .map(|k| {
+            with_iron(
+                "slow-rotation",
+                40 + k,
+                60.0,
+                [HARD[0] * k as f64 / 3.0, HARD[1], HARD[2]],
+            )
+            .recording
+            .mag
+            .unwrap()
+        })
+        .collect();
+    // Lane 2 gets NaN and huge readings now and then.
+    let reading = |k: usize, i: usize| {
+        let m = recs[k][i];
+        match (k, i % 97) {
+            (2, 0) => Vec3::new(f64::NAN, m.y, m.z),
+            (2, 1) => m * 1e30,
+            _ => m,
+        }
+    };
+    let params = OnlineHardIronParams::default();
+    let mut lanes = OnlineHardIron::<f64x4>::new(params).unwrap();
+    let mut scalars: Vec<_> = (0..4)
+        .map(|_| OnlineHardIron::<f64>::new(params).unwrap())
+        .collect();
+    for i in 0..recs[0].len() {
+        let out = lanes.update(Vec3::from_lanes(|k| reading(k, i)));
+        for (k, s) in scalars.iter_mut().enumerate() {
+            let o = s.update(reading(k, i));
+            let l = out.lane(k);
+            for (a, b) in [(o.x, l.x), (o.y, l.y), (o.z, l.z)] {
+                assert!(
+                    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                    "sample {i} lane {k}"
+                );
+            }
+        }
+    }
+    for (k, s) in scalars.iter().enumerate() {
+        assert_eq!(s.applied_offset(), lanes.applied_offset().lane(k));
+        assert_eq!(s.rejected().as_ref()[0], lanes.rejected().as_ref()[k]);
+    }
+}

@@ -72,7 +72,7 @@ impl<T: Lane> SensorCalibration<T> {
     }
 }
 
-mod online;
+pub mod online;
 mod wrapper;
 
 pub use online::{OnlineHardIron, OnlineHardIronParams};

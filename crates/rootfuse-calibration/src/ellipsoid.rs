@@ -180,7 +180,11 @@ pub fn fit_ellipsoid(
     let mut refused = Vec::new();
     for model in LADDER_3D {
         let (coeffs, condition) = algebraic_fit(model, &normalised)?;
-        if !(condition <= options.max_condition) {
+        // NaN (a singular design) must be refused too: `is_le` of a failed comparison is false.
+        if !condition
+            .partial_cmp(&options.max_condition)
+            .is_some_and(|o| o.is_le())
+        {
             refused.push(RefusedModel { model, condition });
             continue;
         }
@@ -239,7 +243,11 @@ fn finish(
     options: &FitOptions,
 ) -> Result<EllipsoidFit, CalibrationError> {
     let quality = quality(&calibration, data, condition, iterations);
-    if !(quality.residual_rms_relative <= options.max_residual_relative) {
+    if !quality
+        .residual_rms_relative
+        .partial_cmp(&options.max_residual_relative)
+        .is_some_and(|o| o.is_le())
+    {
         return Err(CalibrationError::ResidualTooLarge {
             rms_relative: quality.residual_rms_relative,
             limit: options.max_residual_relative,
@@ -323,18 +331,21 @@ fn ellipsoid_from_quadric(
     let not_ellipsoid = || CalibrationError::NotAnEllipsoid { model };
     // Centre: A h = −b; then (p − h)ᵀA(p − h) = 1 + hᵀA h.
     let (vals, vecs) = sym_eigen(a).ok_or_else(not_ellipsoid)?;
-    if vals.iter().any(|&v| !(v > 0.0)) {
+    if vals.iter().any(|&v| v.is_nan() || v <= 0.0) {
         return Err(not_ellipsoid());
     }
     let h = sym_apply(&vecs, &vals.map(|v| -1.0 / v), b);
     let ah = mat_vec(&a, h);
     let scale = 1.0 + (0..3).map(|i| h[i] * ah[i]).sum::<f64>();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return Err(not_ellipsoid());
     }
     let s = sym_function(&vecs, &vals.map(|v| (v / scale).sqrt()));
     Ok((s, h))
 }
+
+/// `S`, `h` (normalised units) and the accepted refinement steps.
+type Refined = ([[f64; 3]; 3], [f64; 3], usize);
 
 /// Levenberg–Marquardt on `r_i = |S(p_i − h)| − 1` over the model's entries of `S` and `h`.
 /// Returns the refined `S`, `h` and the number of accepted steps.
@@ -344,7 +355,7 @@ fn refine(
     s0: [[f64; 3]; 3],
     h0: [f64; 3],
     max_iterations: usize,
-) -> Result<([[f64; 3]; 3], [f64; 3], usize), CalibrationError> {
+) -> Result<Refined, CalibrationError> {
     let basis = model.matrix_basis();
     let ks = basis.len();
     let k = ks + 3;
