@@ -19,16 +19,15 @@
 //! use rootfuse_attitude::Vec3;
 //! use rootfuse_calibration::{fit_ellipsoid, FitOptions, FittedModel};
 //!
-//! // Readings of a 50 µT field over a grid of directions, through hard iron (3, −2, 5) µT
-//! // and a soft-iron stretch of the x axis by 10 %.
-//! let mut raw = Vec::new();
-//! for i in 0..20 {
-//!     for j in 0..40 {
-//!         let (th, ph) = (std::f64::consts::PI * (i as f64 + 0.5) / 20.0, 0.157 * j as f64);
-//!         let d = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
-//!         raw.push(Vec3::new(55.0 * d[0] + 3.0, 50.0 * d[1] - 2.0, 50.0 * d[2] + 5.0));
-//!     }
-//! }
+//! // Readings of a 50 µT field over 800 directions spread evenly (a Fibonacci spiral),
+//! // through hard iron (3, −2, 5) µT and a soft-iron stretch of the x axis by 10 %.
+//! let raw: Vec<Vec3<f64>> = (0..800)
+//!     .map(|k| {
+//!         let z = 1.0 - 2.0 * (k as f64 + 0.5) / 800.0;
+//!         let (r, phi) = ((1.0 - z * z).sqrt(), 2.399963 * k as f64);
+//!         Vec3::new(55.0 * r * phi.cos() + 3.0, 50.0 * r * phi.sin() - 2.0, 50.0 * z + 5.0)
+//!     })
+//!     .collect();
 //! let fit = fit_ellipsoid(&raw, &FitOptions { norm: Some(50.0), ..FitOptions::default() })?;
 //! assert_eq!(fit.model, FittedModel::Full);
 //! assert!((fit.calibration.offset - Vec3::new(3.0, -2.0, 5.0)).norm() < 1e-9);
