@@ -33,6 +33,14 @@ fn frobenius_relative(a: &SensorCalibration<f64>, truth: &Mat3) -> f64 {
     (num / den).sqrt()
 }
 
+fn fit_known_norm(mag: &[Vec3<f64>]) -> rootfuse_calibration::EllipsoidFit {
+    let options = FitOptions {
+        norm: Some(FIELD),
+        ..FitOptions::default()
+    };
+    fit_ellipsoid(mag, &options).unwrap()
+}
+
 /// The `slow-rotation` preset (consumer MEMS noise: 0.2 µT per sample) with the given iron.
 fn rotating(seed: u64, duration: f64, soft: Mat3, hard: [f64; 3]) -> Vec<Vec3<f64>> {
     let mut s = sim::scenario_simulation("slow-rotation", seed, duration, 100.0).unwrap();
@@ -49,14 +57,7 @@ fn rotating(seed: u64, duration: f64, soft: Mat3, hard: [f64; 3]) -> Vec<Vec3<f6
 fn full_rotation_meets_the_accuracy_goals() {
     for seed in [1, 2, 3] {
         let mag = rotating(seed, 300.0, SOFT, HARD);
-        let fit = fit_ellipsoid(
-            &mag,
-            &FitOptions {
-                norm: Some(FIELD),
-                ..FitOptions::default()
-            },
-        )
-        .unwrap();
+        let fit = fit_known_norm(&mag);
         let cal = fit.calibration;
         let h_err = (cal.offset - Vec3::from_array(HARD)).norm() / FIELD;
         let s_err = frobenius_relative(&cal, &inverse(&SOFT));
@@ -108,14 +109,7 @@ fn noise_free_data_are_fitted_exactly() {
     m.soft_iron = SOFT;
     m.hard_iron = Vec3::from_array(HARD);
     let mag = s.run().unwrap().recording.mag.unwrap();
-    let fit = fit_ellipsoid(
-        &mag,
-        &FitOptions {
-            norm: Some(FIELD),
-            ..FitOptions::default()
-        },
-    )
-    .unwrap();
+    let fit = fit_known_norm(&mag);
     assert!((fit.calibration.offset - Vec3::from_array(HARD)).norm() < 1e-8);
     assert!(frobenius_relative(&fit.calibration, &inverse(&SOFT)) < 1e-10);
     assert!(fit.quality.residual_max_relative < 1e-10);

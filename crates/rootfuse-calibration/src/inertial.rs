@@ -139,6 +139,14 @@ fn std_max(v: &[Vec3<f64>]) -> f64 {
     }
 }
 
+/// The readings of `v` inside the rest phases (indices past the end are ignored).
+fn rest_samples(v: &[Vec3<f64>], phases: &[RestPhase]) -> Vec<Vec3<f64>> {
+    phases
+        .iter()
+        .flat_map(|p| v[p.start.min(v.len())..p.end.min(v.len())].iter().copied())
+        .collect()
+}
+
 fn angle(a: Vec3<f64>, b: Vec3<f64>) -> f64 {
     a.cross(b).norm().atan2(a.dot(b))
 }
@@ -161,14 +169,7 @@ pub struct GyroBiasFit {
 
 /// The gyroscope bias as the mean reading over all rest phases (refused without any).
 pub fn gyro_bias(gyr: &[Vec3<f64>], phases: &[RestPhase]) -> Result<GyroBiasFit, CalibrationError> {
-    let samples: Vec<Vec3<f64>> = phases
-        .iter()
-        .flat_map(|p| {
-            gyr[p.start.min(gyr.len())..p.end.min(gyr.len())]
-                .iter()
-                .copied()
-        })
-        .collect();
+    let samples = rest_samples(gyr, phases);
     if phases.is_empty() || samples.len() < 2 {
         return Err(CalibrationError::TooFewRestPhases {
             found: phases.len(),
@@ -226,14 +227,7 @@ pub fn accelerometer(
             needed: NEEDED,
         });
     }
-    let samples: Vec<Vec3<f64>> = phases
-        .iter()
-        .flat_map(|p| {
-            acc[p.start.min(acc.len())..p.end.min(acc.len())]
-                .iter()
-                .copied()
-        })
-        .collect();
+    let samples = rest_samples(acc, phases);
     let fit = fit_ellipsoid(
         &samples,
         &FitOptions {

@@ -1026,16 +1026,20 @@ fn calibrate_writes_what_run_applies() {
     assert_eq!(json["mag"]["model"], "full");
     assert!(json["gyro"]["offset"].is_array() && json["gyro"]["norm"].is_null());
     let out_dir = dir.join("out");
-    let o = run(&[
-        "run",
-        f,
-        "--filter",
-        "sqrt-eskf",
-        "--calibration",
-        c,
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let o_dir = out_dir.to_str().unwrap();
+    let run_calibrated = || {
+        run(&[
+            "run",
+            f,
+            "--filter",
+            "sqrt-eskf",
+            "--calibration",
+            c,
+            "--out",
+            o_dir,
+        ])
+    };
+    let o = run_calibrated();
     assert!(o.status.success(), "{:?}", text(&o));
     // A broken calibration file: refused before anything runs.
     std::fs::write(
@@ -1043,16 +1047,7 @@ fn calibrate_writes_what_run_applies() {
         r#"{"format": "rootfuse-calibration", "mag": {"offset": [1, 2]}}"#,
     )
     .unwrap();
-    let o = run(&[
-        "run",
-        f,
-        "--filter",
-        "sqrt-eskf",
-        "--calibration",
-        c,
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let o = run_calibrated();
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(2));
     assert!(err.contains("mag.offset"), "{err}");
