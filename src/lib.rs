@@ -21,6 +21,7 @@ pub use rootfuse_attitude as attitude;
 pub use rootfuse_attitude::{Quat, Vec3};
 pub use rootfuse_batch as batch;
 pub use rootfuse_beacon as beacon;
+pub use rootfuse_calibration as calibration;
 pub use rootfuse_eval as eval;
 pub use rootfuse_io as io;
 pub use rootfuse_lane as lane;

@@ -4,6 +4,7 @@
 #![allow(clippy::needless_range_loop)]
 mod attitude;
 mod batch;
+mod calibration;
 mod common;
 mod eval;
 mod fuzz_corpus;

@@ -30,6 +30,7 @@
 extern crate std;
 
 pub mod blocks;
+pub mod calibration;
 pub mod filters;
 pub mod frames;
 #[cfg(feature = "nalgebra")]
@@ -45,6 +46,7 @@ pub mod sample;
 pub mod smooth;
 pub mod vec3;
 
+pub use calibration::SensorCalibration;
 pub use filters::{Dof, OrientationFilter};
 pub use quat::Quat;
 #[cfg(feature = "std")]

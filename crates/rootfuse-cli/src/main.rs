@@ -19,6 +19,7 @@ macro_rules! out {
 }
 use std::process::ExitCode;
 
+mod calibrate;
 mod demo;
 mod engine;
 mod eval;
@@ -39,6 +40,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Calibrates a sensor from recordings (magnetometer hard/soft iron, accelerometer
+    /// offset/scale, gyroscope bias) and writes a JSON file that `run --calibration` applies.
+    Calibrate(calibrate::CalibrateArgs),
     /// Runs the built-in default job on simulated data and prints accuracy and throughput.
     Demo(demo::DemoArgs),
     /// Runs a filter over IMU CSV files and writes one estimate file per input.
@@ -81,6 +85,7 @@ pub enum Outcome {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Calibrate(args) => calibrate::run(&args).map(|()| Outcome::Success),
         Command::Demo(args) => demo::run(&args).map(|()| Outcome::Success),
         Command::Run(args) => run::run(&args),
         Command::Eval(args) => eval::run(&args).map(|()| Outcome::Success),

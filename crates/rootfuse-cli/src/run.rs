@@ -68,6 +68,10 @@ pub struct RunArgs {
     /// `--flags`.
     #[arg(long)]
     strict: bool,
+    /// Apply a calibration file written by `rootfuse calibrate` to the raw readings before
+    /// filtering (`y_cal = S·(y_raw − h)` per sensor in the file).
+    #[arg(long)]
+    calibration: Option<PathBuf>,
 }
 
 /// Runs the command.
@@ -120,6 +124,11 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             .progress_chars("=> "),
     );
     bar.set_message("reading");
+    let calibration = args
+        .calibration
+        .as_deref()
+        .map(crate::calibrate::read_calibration)
+        .transpose()?;
     let mut recs: Vec<Recording> = Vec::new();
     let mut out_paths: Vec<&Path> = Vec::new();
     let mut failed = 0usize;
@@ -128,7 +137,10 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             .map_err(|e| e.to_string())
             .and_then(|rec| check_recording(file, rec, nine_d, dof_explicit));
         match checked {
-            Ok((rec, note)) => {
+            Ok((mut rec, note)) => {
+                if let Some(cal) = &calibration {
+                    crate::calibrate::apply_calibration(&mut rec, cal);
+                }
                 if let Some(note) = note {
                     bar.suspend(|| eprintln!("note: {note}"));
                 }

@@ -989,3 +989,73 @@ fn max_dt_sets_the_gap_limit() {
         );
     }
 }
+
+/// `calibrate mag` on a recording with 30 % hard iron writes a JSON calibration close to the
+/// truth; `calibrate gyro` adds its section to the same file; `run --calibration` applies it;
+/// a malformed calibration file is one clear error, exit 2.
+#[test]
+fn calibrate_writes_what_run_applies() {
+    let dir = temp_dir("calibrate");
+    let mut sim =
+        rootfuse_eval::sim::scenario_simulation("slow-rotation", 3, 120.0, 100.0).unwrap();
+    sim.sensor.mag.as_mut().unwrap().hard_iron = rootfuse_attitude::Vec3::new(12.0, -7.0, 6.0);
+    let rec = sim.run().unwrap().recording;
+    let file = dir.join("rec.csv");
+    write_recording(&file, &rec).unwrap();
+    let cal = dir.join("cal.json");
+    let f = file.to_str().unwrap();
+    let c = cal.to_str().unwrap();
+    let o = run(&["calibrate", "mag", f, "--norm", "50", "--out", c]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}\n{err}");
+    assert!(out.contains("model full"), "{out}");
+    let o = run(&["calibrate", "gyro", f, "--out", c]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    let h: Vec<f64> = json["mag"]["offset"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        (h[0] - 12.0).abs() < 0.25 && (h[1] + 7.0).abs() < 0.25 && (h[2] - 6.0).abs() < 0.25,
+        "{h:?}"
+    );
+    assert_eq!(json["mag"]["model"], "full");
+    assert!(json["gyro"]["offset"].is_array() && json["gyro"]["norm"].is_null());
+    let out_dir = dir.join("out");
+    let o_dir = out_dir.to_str().unwrap();
+    let run_calibrated = || {
+        run(&[
+            "run",
+            f,
+            "--filter",
+            "sqrt-eskf",
+            "--calibration",
+            c,
+            "--out",
+            o_dir,
+        ])
+    };
+    let o = run_calibrated();
+    assert!(o.status.success(), "{:?}", text(&o));
+    // A broken calibration file: refused before anything runs.
+    std::fs::write(
+        &cal,
+        r#"{"format": "rootfuse-calibration", "mag": {"offset": [1, 2]}}"#,
+    )
+    .unwrap();
+    let o = run_calibrated();
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(err.contains("mag.offset"), "{err}");
+    // Too little motion for a magnetometer calibration: a clear refusal.
+    let still = rootfuse_eval::sim::scenario("static", 4, 20.0, 100.0).unwrap();
+    write_recording(&file, &still).unwrap();
+    let o = run(&["calibrate", "mag", f, "--out", c]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(err.contains("constant reading"), "{err}");
+}

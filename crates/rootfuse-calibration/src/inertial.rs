@@ -1,0 +1,242 @@
+//! Gyroscope bias and accelerometer offset and scale from rest phases.
+//!
+//! At rest a gyroscope reads its bias and an accelerometer reads gravity through its errors:
+//! `a_raw = S⁻¹·g_sensor + h` with `|g_sensor| = g`. Rest phases in different orientations
+//! (six: each axis up and down, the *six-position method*) therefore put the mean readings on
+//! the ellipsoid of [`fit_ellipsoid`], with the norm known (gravity), and the same fit,
+//! observability ladder and quality figures apply. With six positions the full symmetric `S`
+//! is not determined (six clusters, nine parameters): the ladder reports that and fits
+//! offset and per-axis scale.
+
+use crate::{CalibrationError, EllipsoidFit, FitOptions, fit_ellipsoid};
+use rootfuse_attitude::{Mat, SensorCalibration, Vec3};
+
+/// How rest is detected: blocks of `block_s` seconds whose per-axis standard deviations stay
+/// below the limits are still; runs of still blocks with the same gravity direction (within
+/// `max_turn_rad`) lasting at least `min_duration_s` are rest phases.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestOptions {
+    /// Block length, s.
+    pub block_s: f64,
+    /// Largest per-axis gyroscope standard deviation within a still block, rad/s.
+    pub gyro_std_max: f64,
+    /// Largest per-axis accelerometer standard deviation within a still block, m/s².
+    pub acc_std_max: f64,
+    /// Largest angle between the mean accelerometer directions of adjacent still blocks of one
+    /// phase, rad.
+    pub max_turn_rad: f64,
+    /// Shortest rest phase, s.
+    pub min_duration_s: f64,
+}
+
+impl Default for RestOptions {
+    /// Blocks of 0.25 s; 0.02 rad/s and 0.1 m/s²; 2°; phases of at least 1 s.
+    fn default() -> Self {
+        Self {
+            block_s: 0.25,
+            gyro_std_max: 0.02,
+            acc_std_max: 0.1,
+            max_turn_rad: 2f64.to_radians(),
+            min_duration_s: 1.0,
+        }
+    }
+}
+
+/// One rest phase: samples `start..end` of the recording.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestPhase {
+    /// First sample.
+    pub start: usize,
+    /// One past the last sample.
+    pub end: usize,
+    /// Mean gyroscope reading, rad/s.
+    pub mean_gyr: Vec3<f64>,
+    /// Mean accelerometer reading, m/s².
+    pub mean_acc: Vec3<f64>,
+}
+
+/// Finds the rest phases of a recording (`t` in s, gyroscope rad/s, accelerometer m/s²; equal
+/// lengths). Blocks holding a non-finite value are not still.
+pub fn rest_phases(
+    t: &[f64],
+    gyr: &[Vec3<f64>],
+    acc: &[Vec3<f64>],
+    options: &RestOptions,
+) -> Vec<RestPhase> {
+    let n = t.len().min(gyr.len()).min(acc.len());
+    if n < 2 {
+        return Vec::new();
+    }
+    let span = t[n - 1] - t[0];
+    let rate = if span > 0.0 {
+        (n - 1) as f64 / span
+    } else {
+        0.0
+    };
+    let block = ((options.block_s * rate).round() as usize).max(2);
+    let mut phases: Vec<RestPhase> = Vec::new();
+    let mut open: Option<(usize, usize, Vec3<f64>)> = None;
+    let close = |phases: &mut Vec<RestPhase>, run: Option<(usize, usize, Vec3<f64>)>| {
+        if let Some((start, end, _)) = run
+            && t[end - 1] - t[start] >= options.min_duration_s
+        {
+            phases.push(RestPhase {
+                start,
+                end,
+                mean_gyr: mean(&gyr[start..end]),
+                mean_acc: mean(&acc[start..end]),
+            });
+        }
+    };
+    for b in (0..n).step_by(block) {
+        let e = (b + block).min(n);
+        let still = e - b >= 2
+            && std_max(&gyr[b..e]) <= options.gyro_std_max
+            && std_max(&acc[b..e]) <= options.acc_std_max;
+        if !still {
+            close(&mut phases, open.take());
+            continue;
+        }
+        let dir = mean(&acc[b..e]);
+        open = match open {
+            Some((start, _, prev)) if angle(prev, dir) <= options.max_turn_rad => {
+                Some((start, e, dir))
+            }
+            run => {
+                close(&mut phases, run);
+                Some((b, e, dir))
+            }
+        };
+    }
+    close(&mut phases, open);
+    phases
+}
+
+fn mean(v: &[Vec3<f64>]) -> Vec3<f64> {
+    let mut s = Vec3::zero();
+    for x in v {
+        s += *x;
+    }
+    s * (1.0 / v.len() as f64)
+}
+
+/// Largest per-axis standard deviation (NaN, hence "not still", if a value is not finite).
+fn std_max(v: &[Vec3<f64>]) -> f64 {
+    let m = mean(v);
+    let mut var = [0.0f64; 3];
+    for x in v {
+        let d = (*x - m).to_array();
+        for k in 0..3 {
+            var[k] += d[k] * d[k];
+        }
+    }
+    let n = (v.len() - 1) as f64;
+    let worst = var[0].max(var[1]).max(var[2]);
+    if var.iter().any(|x| x.is_nan()) {
+        f64::NAN
+    } else {
+        (worst / n).sqrt()
+    }
+}
+
+/// The readings of `v` inside the rest phases (indices past the end are ignored).
+fn rest_samples(v: &[Vec3<f64>], phases: &[RestPhase]) -> Vec<Vec3<f64>> {
+    phases
+        .iter()
+        .flat_map(|p| v[p.start.min(v.len())..p.end.min(v.len())].iter().copied())
+        .collect()
+}
+
+fn angle(a: Vec3<f64>, b: Vec3<f64>) -> f64 {
+    a.cross(b).norm().atan2(a.dot(b))
+}
+
+/// Gyroscope bias from rest phases.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GyroBiasFit {
+    /// `S = I`, offset = the bias (rad/s), norm NaN.
+    pub calibration: SensorCalibration<f64>,
+    /// Standard error of the bias per axis, rad/s (sample standard deviation over `√n`).
+    pub std_error: Vec3<f64>,
+    /// Largest distance of one phase's mean from the bias, rad/s: a large value next to a
+    /// small standard error means the bias drifted between phases.
+    pub phase_spread: f64,
+    /// Rest phases used.
+    pub phases: usize,
+    /// Samples used.
+    pub samples: usize,
+}
+
+/// The gyroscope bias as the mean reading over all rest phases (refused without any).
+pub fn gyro_bias(gyr: &[Vec3<f64>], phases: &[RestPhase]) -> Result<GyroBiasFit, CalibrationError> {
+    let samples = rest_samples(gyr, phases);
+    if phases.is_empty() || samples.len() < 2 {
+        return Err(CalibrationError::TooFewRestPhases {
+            found: phases.len(),
+            needed: 1,
+        });
+    }
+    let bias = mean(&samples);
+    let n = samples.len() as f64;
+    let mut var = [0.0f64; 3];
+    for x in &samples {
+        let d = (*x - bias).to_array();
+        for k in 0..3 {
+            var[k] += d[k] * d[k] / (n - 1.0);
+        }
+    }
+    let std_error = Vec3::from_array(var.map(|v| (v / n).sqrt()));
+    let phase_spread = phases
+        .iter()
+        .map(|p| (p.mean_gyr - bias).norm())
+        .fold(0.0, f64::max);
+    Ok(GyroBiasFit {
+        calibration: SensorCalibration {
+            matrix: Mat::identity(),
+            offset: bias,
+            norm: f64::NAN,
+        },
+        std_error,
+        phase_spread,
+        phases: phases.len(),
+        samples: samples.len(),
+    })
+}
+
+/// Accelerometer offset and scale from rest phases.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AccelerometerFit {
+    /// The ellipsoid fit of the rest readings with the norm fixed to gravity.
+    pub fit: EllipsoidFit,
+    /// Rest phases used.
+    pub phases: usize,
+}
+
+/// The six-position method: fits `a_cal = S·(a_raw − h)` with `|a_cal| = gravity` to the
+/// readings of the rest phases (at least six, in different orientations).
+pub fn accelerometer(
+    acc: &[Vec3<f64>],
+    phases: &[RestPhase],
+    gravity: f64,
+    options: &FitOptions,
+) -> Result<AccelerometerFit, CalibrationError> {
+    const NEEDED: usize = 6;
+    if phases.len() < NEEDED {
+        return Err(CalibrationError::TooFewRestPhases {
+            found: phases.len(),
+            needed: NEEDED,
+        });
+    }
+    let samples = rest_samples(acc, phases);
+    let fit = fit_ellipsoid(
+        &samples,
+        &FitOptions {
+            norm: Some(gravity),
+            ..*options
+        },
+    )?;
+    Ok(AccelerometerFit {
+        fit,
+        phases: phases.len(),
+    })
+}
