@@ -2,7 +2,7 @@
 //! library's per device bit for bit; bad input gives one line naming file, row group, row and
 //! column, exit code 2 and no output file; `--keep-going` completes the rest (exit code 1).
 use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, Int64Array, RecordBatch};
-use arrow::datatypes::{DataType, Field, Float64Type, Int64Type, Schema};
+use arrow::datatypes::{Float64Type, Int64Type};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use rootfuse_attitude::registry::FilterSpec;
@@ -65,15 +65,17 @@ fn read_parquet_estimates(path: &Path) -> Vec<(i64, f64, [f64; 4])> {
     rows
 }
 
-/// The simulator's devices (seeds 0..n, slow-rotation) run through the library directly.
-fn library_estimates(n: u64, seconds: f64, precision: Precision) -> Vec<Vec<[f64; 4]>> {
+/// The simulator's devices (seeds 0..n, slow-rotation) run through the library directly:
+/// per device, `(t, quaternion)` of every sample.
+fn library_estimates(n: u64, seconds: f64, precision: Precision) -> Vec<Vec<(f64, [f64; 4])>> {
     let spec = FilterSpec::new("sqrt-eskf").unwrap();
     let recs: Vec<_> = (0..n)
         .map(|s| scenario("slow-rotation", s, seconds, 100.0).unwrap())
         .collect();
     run_recordings(&spec, &recs, precision)
         .into_iter()
-        .map(|o| o.quat.iter().map(|q| q.to_array()).collect())
+        .zip(&recs)
+        .map(|(o, rec)| rec.t.iter().zip(&o.quat).map(|(&t, q)| (t, q.to_array())).collect())
         .collect()
 }
 
@@ -102,8 +104,8 @@ fn simulated_fleet_equals_the_library_per_device() {
         for (d, t, q) in rows {
             let k = next[d as usize];
             next[d as usize] += 1;
-            assert_eq!(t, k as f64 / 100.0, "device {d} row {k}");
-            let e = expected[d as usize][k];
+            let (te, e) = expected[d as usize][k];
+            assert_eq!(t.to_bits(), te.to_bits(), "device {d} row {k}");
             assert_eq!(q.map(f64::to_bits), e.map(f64::to_bits), "device {d} row {k} ({name})");
         }
         assert_eq!(next, [300; 5]);
