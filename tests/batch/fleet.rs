@@ -23,7 +23,11 @@ fn blocks(recs: &[Recording], order: &[(usize, usize)], cuts: &[usize]) -> Vec<F
             t: rows.iter().map(|&(d, k)| recs[d].t[k]).collect(),
             gyr: rows.iter().map(|&(d, k)| recs[d].gyr[k]).collect(),
             acc: rows.iter().map(|&(d, k)| recs[d].acc[k]).collect(),
-            mag: Some(rows.iter().map(|&(d, k)| recs[d].mag.as_ref().unwrap()[k]).collect()),
+            mag: Some(
+                rows.iter()
+                    .map(|&(d, k)| recs[d].mag.as_ref().unwrap()[k])
+                    .collect(),
+            ),
         });
     }
     out
@@ -33,8 +37,18 @@ fn fleet() -> Vec<Recording> {
     // Ragged lengths and two rates; 6 devices fill one f64x4 chunk and part of another.
     (0..6)
         .map(|d| {
-            let name = if d % 2 == 0 { "slow-rotation" } else { "static" };
-            scenario(name, d as u64, 1.0 + 0.3 * d as f64, 50.0 + 25.0 * (d % 3) as f64).unwrap()
+            let name = if d % 2 == 0 {
+                "slow-rotation"
+            } else {
+                "static"
+            };
+            scenario(
+                name,
+                d as u64,
+                1.0 + 0.3 * d as f64,
+                50.0 + 25.0 * (d % 3) as f64,
+            )
+            .unwrap()
         })
         .collect()
 }
@@ -61,14 +75,25 @@ fn check(order: &[(usize, usize)], cuts: &[usize], precision: Precision, what: &
             flags[d].push(est.flags[r]);
             let k = got[d].len() - 1;
             assert_eq!(est.bias[r], expected[d].bias[k], "{what}: bias {d} {k}");
-            assert_eq!(est.covariance[r], expected[d].covariance[k], "{what}: cov {d} {k}");
+            assert_eq!(
+                est.covariance[r], expected[d].covariance[k],
+                "{what}: cov {d} {k}"
+            );
         }
     }
     for (d, e) in expected.iter().enumerate() {
-        let want: Vec<[u64; 4]> = e.quat.iter().map(|q| q.to_array().map(f64::to_bits)).collect();
+        let want: Vec<[u64; 4]> = e
+            .quat
+            .iter()
+            .map(|q| q.to_array().map(f64::to_bits))
+            .collect();
         assert_eq!(got[d], want, "{what}: device {d}");
         assert_eq!(flags[d], e.flags, "{what}: flags of device {d}");
-        assert_eq!(runner.rejections(d as u32), e.rejections, "{what}: rejections {d}");
+        assert_eq!(
+            runner.rejections(d as u32),
+            e.rejections,
+            "{what}: rejections {d}"
+        );
     }
 }
 
@@ -80,7 +105,11 @@ fn any_order_and_blocks_equal_whole_recordings() {
     let recs = fleet();
     let longest = recs.iter().map(Recording::len).max().unwrap();
     let time_major: Vec<(usize, usize)> = (0..longest)
-        .flat_map(|k| (0..recs.len()).filter(move |&d| k < recs[d].len()).map(move |d| (d, k)))
+        .flat_map(|k| {
+            (0..recs.len())
+                .filter(move |&d| k < recs[d].len())
+                .map(move |d| (d, k))
+        })
         .collect();
     let device_major: Vec<(usize, usize)> = (0..recs.len())
         .flat_map(|d| (0..recs[d].len()).map(move |k| (d, k)))
@@ -99,12 +128,27 @@ fn any_order_and_blocks_equal_whole_recordings() {
         }
     }
     let n = time_major.len();
-    let every = |step: usize| (1..).map(|i| i * step).take_while(|&c| c < n).collect::<Vec<_>>();
+    let every = |step: usize| {
+        (1..)
+            .map(|i| i * step)
+            .take_while(|&c| c < n)
+            .collect::<Vec<_>>()
+    };
     for precision in [Precision::F64, Precision::F32] {
         check(&time_major, &[], precision, "time-major, one block");
-        check(&time_major, &every(1), precision, "time-major, one row per block");
+        check(
+            &time_major,
+            &every(1),
+            precision,
+            "time-major, one row per block",
+        );
         check(&time_major, &every(13), precision, "time-major, 13 rows");
-        check(&device_major, &every(50), precision, "device-major, 50 rows");
+        check(
+            &device_major,
+            &every(50),
+            precision,
+            "device-major, 50 rows",
+        );
         check(&runs, &every(97), precision, "runs of 7, 97 rows");
         // Device 1's first row alone at the end of a block: cut right after it.
         let first_of_1 = runs.iter().position(|&(d, _)| d == 1).unwrap();
@@ -125,7 +169,14 @@ fn bad_time_stops_or_drops_only_its_device() {
     runner.step(&bs[0], None, OnError::Stop).unwrap();
     let err = runner.step(&bs[1], None, OnError::Stop).unwrap_err();
     assert!(
-        matches!(err, FleetError::TimeNotIncreasing { row: 4, device: 1, .. }),
+        matches!(
+            err,
+            FleetError::TimeNotIncreasing {
+                row: 4,
+                device: 1,
+                ..
+            }
+        ),
         "{err:?}"
     );
     let mut dropping = FleetRunner::new(&spec, Precision::F64, Columns::default());
@@ -136,8 +187,17 @@ fn bad_time_stops_or_drops_only_its_device() {
         .filter(|&r| bs[1].device[r] == 1)
         .map(|r| est.kept[r])
         .collect();
-    assert_eq!(kept_1, [true, false, false, false, false, false, false, false, false, false]);
-    assert!((0..bs[1].len()).filter(|&r| bs[1].device[r] != 1).all(|r| est.kept[r]));
+    assert_eq!(
+        kept_1,
+        [
+            true, false, false, false, false, false, false, false, false, false
+        ]
+    );
+    assert!(
+        (0..bs[1].len())
+            .filter(|&r| bs[1].device[r] != 1)
+            .all(|r| est.kept[r])
+    );
     let est = dropping.step(&bs[2], None, OnError::DropDevice).unwrap();
     assert!((0..bs[2].len()).all(|r| est.kept[r] == (bs[2].device[r] != 1)));
     assert!(est.failures.is_empty());
@@ -145,6 +205,10 @@ fn bad_time_stops_or_drops_only_its_device() {
     nan.t[0] = f64::NAN;
     assert!(matches!(
         runner.step(&nan, None, OnError::Stop),
-        Err(FleetError::TimeNotFinite { row: 0, device: 0, .. })
+        Err(FleetError::TimeNotFinite {
+            row: 0,
+            device: 0,
+            ..
+        })
     ));
 }

@@ -485,8 +485,9 @@ impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
     fn state_bytes_per_channel(&self) -> usize {
         match self.batches.first() {
             Some(b) => b.state_bytes_per_channel(),
-            None => Batch::<L, F>::try_new(&self.spec, 1)
-                .map_or(0, |b| b.state_bytes_per_channel()),
+            None => {
+                Batch::<L, F>::try_new(&self.spec, 1).map_or(0, |b| b.state_bytes_per_channel())
+            }
         }
     }
 

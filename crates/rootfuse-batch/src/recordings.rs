@@ -2,8 +2,8 @@
 
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use rayon::prelude::*;
-use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
 use rootfuse_attitude::filters::SampleFlags;
+use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
 use rootfuse_attitude::{Lane, Mat, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::wide::{f32x8, f64x4};
 

@@ -97,8 +97,14 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         }
     }
     let files = input_files(&args.inputs)?;
-    let columnar = files.iter().any(|f| Format::of_path(f).is_some_and(|x| x != Format::Csv));
-    if columnar && files.iter().any(|f| Format::of_path(f) == Some(Format::Csv)) {
+    let columnar = files
+        .iter()
+        .any(|f| Format::of_path(f).is_some_and(|x| x != Format::Csv));
+    if columnar
+        && files
+            .iter()
+            .any(|f| Format::of_path(f) == Some(Format::Csv))
+    {
         return Err(
             "give CSV recordings or Parquet/Arrow fleets in one run, not both (their devices are told apart differently)"
                 .into(),
@@ -228,9 +234,7 @@ fn input_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                 .map_err(|e| format!("{}: cannot read: {e}", input.display()))?;
             listed = entries
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.is_file() && Format::of_path(p).is_some_and(|f| f != Format::Csv)
-                })
+                .filter(|p| p.is_file() && Format::of_path(p).is_some_and(|f| f != Format::Csv))
                 .collect();
             listed.sort();
         }
@@ -346,8 +350,7 @@ fn smooth_files(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals
             write_estimates(out, &rec.t, &smoothed.quat, &[]).map_err(|e| e.to_string())?;
             let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
             crate::stream::add(&mut totals.rejections, r);
-            let missing =
-                samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64;
+            let missing = samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64;
             totals.missing_imu += missing;
             totals.files_with_missing_imu += usize::from(missing > 0);
             totals.samples += rec.len() as u64;

@@ -102,8 +102,8 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
                 ));
             }
             check_mag(job, file, blocks.has_mag())?;
-            let writer = EstimateWriter::create(out, job.format, None, &names)
-                .map_err(|e| e.to_string())?;
+            let writer =
+                EstimateWriter::create(out, job.format, None, &names).map_err(|e| e.to_string())?;
             Ok(CsvInput {
                 blocks,
                 buffer,
@@ -200,7 +200,9 @@ fn csv_block(inputs: &[CsvInput]) -> (FleetBlock, Vec<std::ops::Range<usize>>) {
     for input in inputs {
         let rec = &input.buffer;
         let start = block.len();
-        block.device.extend(std::iter::repeat_n(input.device, rec.len()));
+        block
+            .device
+            .extend(std::iter::repeat_n(input.device, rec.len()));
         block.t.extend(&rec.t);
         block.gyr.extend(&rec.gyr);
         block.acc.extend(&rec.acc);

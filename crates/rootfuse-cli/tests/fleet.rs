@@ -51,8 +51,17 @@ fn read_parquet_estimates(path: &Path) -> Vec<(i64, f64, [f64; 4])> {
     let mut rows = Vec::new();
     for batch in reader {
         let b = batch.unwrap();
-        let f = |n: &str| b.column_by_name(n).unwrap().as_primitive::<Float64Type>().clone();
-        let d = b.column_by_name("device").unwrap().as_primitive::<Int64Type>().clone();
+        let f = |n: &str| {
+            b.column_by_name(n)
+                .unwrap()
+                .as_primitive::<Float64Type>()
+                .clone()
+        };
+        let d = b
+            .column_by_name("device")
+            .unwrap()
+            .as_primitive::<Int64Type>()
+            .clone();
         let (t, w, x, y, z) = (f("t"), f("qw"), f("qx"), f("qy"), f("qz"));
         for r in 0..b.num_rows() {
             rows.push((
@@ -75,7 +84,13 @@ fn library_estimates(n: u64, seconds: f64, precision: Precision) -> Vec<Vec<(f64
     run_recordings(&spec, &recs, precision)
         .into_iter()
         .zip(&recs)
-        .map(|(o, rec)| rec.t.iter().zip(&o.quat).map(|(&t, q)| (t, q.to_array())).collect())
+        .map(|(o, rec)| {
+            rec.t
+                .iter()
+                .zip(&o.quat)
+                .map(|(&t, q)| (t, q.to_array()))
+                .collect()
+        })
         .collect()
 }
 
@@ -86,14 +101,29 @@ fn simulated_fleet_equals_the_library_per_device() {
     let dir = temp_dir("equal");
     let fleet = dir.join("fleet.parquet");
     let (code, stdout, stderr) = run(&[
-        &"simulate", &"--devices", &"5", &"--seconds", &"3", &"--rate", &"100", &"--out", &fleet,
+        &"simulate",
+        &"--devices",
+        &"5",
+        &"--seconds",
+        &"3",
+        &"--rate",
+        &"100",
+        &"--out",
+        &fleet,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stdout.contains("5 device(s), 1500 rows"), "{stdout}");
     for (precision, name) in [(Precision::F64, "f64"), (Precision::F32, "f32")] {
         let out = dir.join(format!("o-{name}"));
         let (code, stdout, stderr) = run(&[
-            &"run", &fleet, &"--filter", &"flagship", &"--precision", &name, &"--out", &out,
+            &"run",
+            &fleet,
+            &"--filter",
+            &"flagship",
+            &"--precision",
+            &name,
+            &"--out",
+            &out,
         ]);
         assert_eq!(code, Some(0), "{stderr}");
         assert!(stdout.contains("1 file(s), 1500 samples"), "{stdout}");
@@ -106,19 +136,36 @@ fn simulated_fleet_equals_the_library_per_device() {
             next[d as usize] += 1;
             let (te, e) = expected[d as usize][k];
             assert_eq!(t.to_bits(), te.to_bits(), "device {d} row {k}");
-            assert_eq!(q.map(f64::to_bits), e.map(f64::to_bits), "device {d} row {k} ({name})");
+            assert_eq!(
+                q.map(f64::to_bits),
+                e.map(f64::to_bits),
+                "device {d} row {k} ({name})"
+            );
         }
         assert_eq!(next, [300; 5]);
     }
     // Arrow IPC in and out: the same numbers.
     let arrow_fleet = dir.join("fleet.arrow");
     let (code, _, stderr) = run(&[
-        &"simulate", &"--devices", &"5", &"--seconds", &"3", &"--out", &arrow_fleet,
+        &"simulate",
+        &"--devices",
+        &"5",
+        &"--seconds",
+        &"3",
+        &"--out",
+        &arrow_fleet,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     let out = dir.join("o-arrow");
     let (code, _, stderr) = run(&[
-        &"run", &arrow_fleet, &"--filter", &"flagship", &"--format", &"parquet", &"--out", &out,
+        &"run",
+        &arrow_fleet,
+        &"--filter",
+        &"flagship",
+        &"--format",
+        &"parquet",
+        &"--out",
+        &out,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(
@@ -145,7 +192,13 @@ fn csv_streaming_equals_the_library() {
     }
     let out = dir.join("o");
     let (code, _, stderr) = run(&[
-        &"run", &inputs[0], &inputs[1], &"--filter", &"mahony", &"--out", &out,
+        &"run",
+        &inputs[0],
+        &inputs[1],
+        &"--filter",
+        &"mahony",
+        &"--out",
+        &out,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     let spec = FilterSpec::new("mahony").unwrap();
@@ -207,8 +260,16 @@ fn replace(
 /// output folder holds no file at all (nothing half-written).
 fn refused(dir: &Path, input: &Path, extra: &[&str], expected: &[&str]) {
     let out = dir.join("o");
-    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> =
-        vec![&"run", &input, &"--filter", &"mahony", &"--dof", &"6", &"--out", &out];
+    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
+        &"run",
+        &input,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--out",
+        &out,
+    ];
     for e in extra {
         args.push(e);
     }
@@ -231,16 +292,35 @@ fn bad_fleet_files_are_refused_with_their_place() {
     let mut cols = fleet_columns(rows);
     cols.retain(|(n, _)| *n != "gy");
     write_parquet(&p, cols, 16);
-    refused(&dir, &p, &[], &["missing.parquet: missing required column `gy`"]);
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["missing.parquet: missing required column `gy`"],
+    );
 
     let p = name("mistyped.parquet");
     let ints: ArrayRef = Arc::new(Int64Array::from((0..rows as i64).collect::<Vec<_>>()));
     write_parquet(&p, replace(fleet_columns(rows), "t", ints), 16);
-    refused(&dir, &p, &[], &["mistyped.parquet: column `t` has type Int64, expected float32 or float64"]);
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["mistyped.parquet: column `t` has type Int64, expected float32 or float64"],
+    );
 
     let p = name("device-float.parquet");
-    write_parquet(&p, replace(fleet_columns(rows), "device", floats(&vec![1.5; rows])), 16);
-    refused(&dir, &p, &[], &["column `device` has type Float64, expected an integer or string"]);
+    write_parquet(
+        &p,
+        replace(fleet_columns(rows), "device", floats(&vec![1.5; rows])),
+        16,
+    );
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["column `device` has type Float64, expected an integer or string"],
+    );
 
     // Device 1's time goes back at file row 27 (row group 1 of 16-row groups).
     let p = name("backwards.parquet");
@@ -251,27 +331,53 @@ fn bad_fleet_files_are_refused_with_their_place() {
         &dir,
         &p,
         &[],
-        &["backwards.parquet: row group 1, row 27, column `t` (device 1): time 0.05 does not increase"],
+        &[
+            "backwards.parquet: row group 1, row 27, column `t` (device 1): time 0.05 does not increase",
+        ],
     );
 
     let p = name("null-time.parquet");
     let mut t: Vec<Option<f64>> = (0..rows).map(|r| Some((r / 2) as f64 * 0.01)).collect();
     t[35] = None;
-    write_parquet(&p, replace(fleet_columns(rows), "t", Arc::new(Float64Array::from(t))), 16);
-    refused(&dir, &p, &[], &["null-time.parquet: row group 2, row 35, column `t`: time is null"]);
+    write_parquet(
+        &p,
+        replace(fleet_columns(rows), "t", Arc::new(Float64Array::from(t))),
+        16,
+    );
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["null-time.parquet: row group 2, row 35, column `t`: time is null"],
+    );
 
     // A NaN IMU row is a dropped packet: kept and counted, refused with --strict.
     let p = name("nan.parquet");
     let mut gx = vec![0.0; rows];
     gx[20] = f64::NAN;
     write_parquet(&p, replace(fleet_columns(rows), "gx", floats(&gx)), 16);
-    refused(&dir, &p, &["--strict"], &["nan.parquet: row group 1, row 20, column `gx`: IMU value NaN is not finite"]);
+    refused(
+        &dir,
+        &p,
+        &["--strict"],
+        &["nan.parquet: row group 1, row 20, column `gx`: IMU value NaN is not finite"],
+    );
     let out = dir.join("nan-kept");
     let (code, stdout, stderr) = run(&[
-        &"run", &p, &"--filter", &"mahony", &"--dof", &"6", &"--out", &out,
+        &"run",
+        &p,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--out",
+        &out,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
-    assert!(stdout.contains("missing IMU values (NaN or infinite): 1 sample(s)"), "{stdout}");
+    assert!(
+        stdout.contains("missing IMU values (NaN or infinite): 1 sample(s)"),
+        "{stdout}"
+    );
     assert!(stdout.contains("gyro 1"), "{stdout}");
 
     // float32 columns are read as well.
@@ -281,7 +387,14 @@ fn bad_fleet_files_are_refused_with_their_place() {
     ));
     write_parquet(&p, replace(fleet_columns(rows), "t", t32), 16);
     let (code, stdout, stderr) = run(&[
-        &"run", &p, &"--filter", &"mahony", &"--dof", &"6", &"--out", &dir.join("f32"),
+        &"run",
+        &p,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--out",
+        &dir.join("f32"),
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stdout.contains(&format!("{rows} samples")), "{stdout}");
@@ -292,7 +405,12 @@ fn bad_fleet_files_are_refused_with_their_place() {
     let bytes = std::fs::read(&good).unwrap();
     let p = name("truncated.parquet");
     std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
-    refused(&dir, &p, &[], &["truncated.parquet: not a readable Parquet file"]);
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["truncated.parquet: not a readable Parquet file"],
+    );
     let p = name("corrupt.parquet");
     let mut bad = bytes.clone();
     // The data pages start right after the 4-byte magic: scramble the first column chunk.
@@ -300,10 +418,20 @@ fn bad_fleet_files_are_refused_with_their_place() {
         *b ^= 0x5a;
     }
     std::fs::write(&p, &bad).unwrap();
-    refused(&dir, &p, &[], &["corrupt.parquet: row group 0: not a readable Parquet file"]);
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["corrupt.parquet: row group 0: not a readable Parquet file"],
+    );
     let p = name("garbage.arrow");
     std::fs::write(&p, b"ARROW1\0\0not really").unwrap();
-    refused(&dir, &p, &[], &["garbage.arrow: not a readable Arrow IPC file"]);
+    refused(
+        &dir,
+        &p,
+        &[],
+        &["garbage.arrow: not a readable Arrow IPC file"],
+    );
 }
 
 /// An Arrow record batch without rows is skipped with a note; the file completes.
@@ -323,10 +451,20 @@ fn empty_record_batch_is_skipped_and_noted() {
     w.finish().unwrap();
     let out = dir.join("o");
     let (code, stdout, stderr) = run(&[
-        &"run", &p, &"--filter", &"mahony", &"--dof", &"6", &"--out", &out,
+        &"run",
+        &p,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--out",
+        &out,
     ]);
     assert_eq!(code, Some(0), "{stderr}");
-    assert!(stderr.contains("gaps.arrow: 1 record batch(es) without rows skipped: [1]"), "{stderr}");
+    assert!(
+        stderr.contains("gaps.arrow: 1 record batch(es) without rows skipped: [1]"),
+        "{stderr}"
+    );
     assert!(stdout.contains("20 samples"), "{stdout}");
     assert!(out.join("gaps.arrow").is_file());
 }
@@ -345,7 +483,16 @@ fn keep_going_completes_the_other_devices_and_files() {
     std::fs::write(&b, b"PAR1 not a parquet file PAR1").unwrap();
     let out = dir.join("o");
     let (code, stdout, stderr) = run(&[
-        &"run", &a, &b, &"--filter", &"mahony", &"--dof", &"6", &"--keep-going", &"--out", &out,
+        &"run",
+        &a,
+        &b,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--keep-going",
+        &"--out",
+        &out,
     ]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("row 27, column `t` (device 1)"), "{stderr}");

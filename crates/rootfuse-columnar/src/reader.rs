@@ -202,7 +202,10 @@ impl FleetReader {
     }
 
     /// The next block (at most [`BLOCK_ROWS`] rows, never empty), `None` at the end.
-    pub fn next_chunk(&mut self, devices: &mut Devices) -> Result<Option<FleetChunk>, ColumnarError> {
+    pub fn next_chunk(
+        &mut self,
+        devices: &mut Devices,
+    ) -> Result<Option<FleetChunk>, ColumnarError> {
         loop {
             let next = match self.pending.take() {
                 Some(p) => Some(p),
@@ -271,8 +274,7 @@ impl FleetReader {
                     file: path.to_owned(),
                     source,
                 };
-                let mask =
-                    ProjectionMask::roots(meta.parquet_schema(), projection.iter().copied());
+                let mask = ProjectionMask::roots(meta.parquet_schema(), projection.iter().copied());
                 let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(
                     file.try_clone().map_err(io)?,
                     meta.clone(),
@@ -303,15 +305,17 @@ impl FleetReader {
             problem,
         };
         let column = |name: &str| -> Result<Vec<f64>, ColumnarError> {
-            let col = batch.column_by_name(name).ok_or_else(|| ColumnarError::MissingColumn {
-                file: self.file.clone(),
-                column: REQUIRED
-                    .iter()
-                    .chain(&MAG)
-                    .find(|&&c| c == name)
-                    .copied()
-                    .unwrap_or("t"),
-            })?;
+            let col = batch
+                .column_by_name(name)
+                .ok_or_else(|| ColumnarError::MissingColumn {
+                    file: self.file.clone(),
+                    column: REQUIRED
+                        .iter()
+                        .chain(&MAG)
+                        .find(|&&c| c == name)
+                        .copied()
+                        .unwrap_or("t"),
+                })?;
             float_values(col).ok_or_else(|| type_error(&self.file, name, col.data_type()))
         };
         let t = column("t")?;
@@ -334,7 +338,10 @@ impl FleetReader {
                 return Err(bad(
                     r,
                     name,
-                    format!("IMU value {} is not finite (null or NaN: a dropped packet)", values[r]),
+                    format!(
+                        "IMU value {} is not finite (null or NaN: a dropped packet)",
+                        values[r]
+                    ),
                 ));
             }
             imu.push(values);
@@ -516,7 +523,10 @@ fn check_schema(
             let ty = fields[i].data_type().clone();
             let text = matches!(
                 ty,
-                DataType::Utf8 | DataType::LargeUtf8 | DataType::Utf8View | DataType::Dictionary(..)
+                DataType::Utf8
+                    | DataType::LargeUtf8
+                    | DataType::Utf8View
+                    | DataType::Dictionary(..)
             );
             if !ty.is_integer() && !text {
                 return Err(type_error(file, DEVICE, &ty));

@@ -87,19 +87,28 @@ impl FleetFileWriter {
     }
 
     /// Writes `recs` as devices `first_device..`, interleaved time-major.
-    pub fn write_group(&mut self, first_device: i64, recs: &[Recording]) -> Result<(), ColumnarError> {
+    pub fn write_group(
+        &mut self,
+        first_device: i64,
+        recs: &[Recording],
+    ) -> Result<(), ColumnarError> {
         // (recording, row) in time-major order.
         let longest = recs.iter().map(Recording::len).max().unwrap_or(0);
         let order: Vec<(usize, usize)> = (0..longest)
-            .flat_map(|k| (0..recs.len()).filter(move |&i| k < recs[i].len()).map(move |i| (i, k)))
+            .flat_map(|k| {
+                (0..recs.len())
+                    .filter(move |&i| k < recs[i].len())
+                    .map(move |i| (i, k))
+            })
             .collect();
         for rows in order.chunks(BLOCK_ROWS) {
             let device =
                 Int64Array::from_iter_values(rows.iter().map(|&(i, _)| first_device + i as i64));
             let mut arrays: Vec<ArrayRef> = vec![Arc::new(device)];
             for c in 0..14 {
-                let values =
-                    Float64Array::from_iter_values(rows.iter().map(|&(i, k)| value(&recs[i], k, c)));
+                let values = Float64Array::from_iter_values(
+                    rows.iter().map(|&(i, k)| value(&recs[i], k, c)),
+                );
                 arrays.push(Arc::new(values));
             }
             let batch = RecordBatch::try_new(self.schema.clone(), arrays)
@@ -144,7 +153,10 @@ fn value(rec: &Recording, k: usize, c: usize) -> f64 {
         0 => rec.t[k],
         1..=3 => rec.gyr[k].to_array()[c - 1],
         4..=6 => rec.acc[k].to_array()[c - 4],
-        7..=9 => rec.mag.as_ref().map_or(f64::NAN, |m| m[k].to_array()[c - 7]),
+        7..=9 => rec
+            .mag
+            .as_ref()
+            .map_or(f64::NAN, |m| m[k].to_array()[c - 7]),
         _ => rec
             .truth
             .as_ref()

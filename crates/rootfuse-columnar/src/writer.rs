@@ -164,10 +164,13 @@ impl EstimateWriter {
         }
         let mut arrays: Vec<ArrayRef> = Vec::new();
         if self.schema.field_with_name(DEVICE).is_ok() {
-            let col = chunk.device_column.as_ref().ok_or_else(|| ColumnarError::Write {
-                file: self.path.clone(),
-                message: "a block without the device column".into(),
-            })?;
+            let col = chunk
+                .device_column
+                .as_ref()
+                .ok_or_else(|| ColumnarError::Write {
+                    file: self.path.clone(),
+                    message: "a block without the device column".into(),
+                })?;
             let col = col.slice(rows.start, rows.len());
             let mask = BooleanArray::from(est.kept[rows].to_vec());
             arrays.push(arrow::compute::filter(&col, &mask).map_err(|e| write_error(&e))?);

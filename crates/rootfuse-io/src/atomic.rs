@@ -163,12 +163,10 @@ impl CsvEstimateWriter {
         self.row.push('\n');
         // Every field was written with a leading comma.
         let bytes = &self.row.as_bytes()[1..];
-        self.file
-            .write_all(bytes)
-            .map_err(|source| WriteError::Io {
-                file: self.file.path().to_owned(),
-                source,
-            })
+        self.file.write_all(bytes).map_err(|source| WriteError::Io {
+            file: self.file.path().to_owned(),
+            source,
+        })
     }
 
     /// Renames the file into place (see [`AtomicFile::finish`]).
