@@ -103,10 +103,14 @@ def test_spark_apply_in_arrow_equals_cli(fleet, tmp_path):
     pq.write_table(table, path)
     # Executors run this interpreter (and so this build of rootfuse).
     os.environ["PYSPARK_PYTHON"] = sys.executable
+    # Local mode on the loopback interface only.
+    os.environ["SPARK_LOCAL_IP"] = "127.0.0.1"
     spark = (
         SparkSession.builder.master("local[2]")
         .appName("rootfuse-test")
         .config("spark.ui.enabled", "false")
+        .config("spark.driver.host", "127.0.0.1")
+        .config("spark.driver.bindAddress", "127.0.0.1")
         .config("spark.sql.shuffle.partitions", "2")
         .getOrCreate()
     )
