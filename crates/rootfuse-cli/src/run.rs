@@ -350,19 +350,13 @@ fn smooth_files(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals
             write_estimates(out, &rec.t, &smoothed.quat, &[]).map_err(|e| e.to_string())?;
             let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
             crate::stream::add(&mut totals.rejections, r);
-            let missing = samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64;
-            totals.missing_imu += missing;
-            totals.files_with_missing_imu += usize::from(missing > 0);
+            totals.missing(samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64);
             totals.samples += rec.len() as u64;
             Ok(())
         })();
         match result {
             Ok(()) => totals.files += 1,
-            Err(e) if job.keep_going => {
-                eprintln!("error: {e}");
-                totals.failed_files += 1;
-            }
-            Err(e) => return Err(e),
+            Err(e) => totals.fail(e, job.keep_going)?,
         }
     }
     if totals.files == 0 {

@@ -43,6 +43,25 @@ pub struct Totals {
     pub rejections: RejectionTotals,
 }
 
+impl Totals {
+    /// Counts a file that could not be completed: reported under `--keep-going`, else the
+    /// run's error.
+    pub fn fail(&mut self, e: String, keep_going: bool) -> Result<(), String> {
+        if !keep_going {
+            return Err(e);
+        }
+        eprintln!("error: {e}");
+        self.failed_files += 1;
+        Ok(())
+    }
+
+    /// Counts a completed file's samples with missing IMU values.
+    pub fn missing(&mut self, missing_imu: u64) {
+        self.missing_imu += missing_imu;
+        self.files_with_missing_imu += usize::from(missing_imu > 0);
+    }
+}
+
 pub fn add(totals: &mut RejectionTotals, r: RejectionTotals) {
     totals.dt += r.dt;
     totals.gyr += r.gyr;
@@ -114,11 +133,7 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
         })();
         match opened {
             Ok(input) => inputs.push(input),
-            Err(e) if job.keep_going => {
-                eprintln!("error: {e}");
-                totals.failed_files += 1;
-            }
-            Err(e) => return Err(e),
+            Err(e) => totals.fail(e, job.keep_going)?,
         }
     }
     if inputs.is_empty() {
@@ -165,14 +180,9 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
                     input.writer.finish().map_err(|e| e.to_string())?;
                     totals.files += 1;
                     add(&mut totals.rejections, runner.rejections(input.device));
-                    totals.missing_imu += input.missing_imu;
-                    totals.files_with_missing_imu += usize::from(input.missing_imu > 0);
+                    totals.missing(input.missing_imu);
                 }
-                Err(e) if job.keep_going => {
-                    eprintln!("error: {e}");
-                    totals.failed_files += 1;
-                }
-                Err(e) => return Err(e),
+                Err(e) => totals.fail(e, job.keep_going)?,
             }
         }
         inputs = still;
@@ -251,14 +261,9 @@ pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<To
                 any = true;
                 totals.files += 1;
                 totals.samples += file_totals.samples;
-                totals.missing_imu += file_totals.missing_imu;
-                totals.files_with_missing_imu += usize::from(file_totals.missing_imu > 0);
+                totals.missing(file_totals.missing_imu);
             }
-            Err(e) if job.keep_going => {
-                eprintln!("error: {e}");
-                totals.failed_files += 1;
-            }
-            Err(e) => return Err(e),
+            Err(e) => totals.fail(e, job.keep_going)?,
         }
     }
     if !any {

@@ -32,6 +32,20 @@ fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String) {
     )
 }
 
+/// `rootfuse run INPUT --filter mahony --dof 6 --out OUT`.
+fn run_6d(input: &Path, out: &Path) -> (Option<i32>, String, String) {
+    run(&[
+        &"run",
+        &input,
+        &"--filter",
+        &"mahony",
+        &"--dof",
+        &"6",
+        &"--out",
+        &out,
+    ])
+}
+
 /// Every file in `dir` (none may be a temporary file).
 fn files_in(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -363,16 +377,7 @@ fn bad_fleet_files_are_refused_with_their_place() {
         &["nan.parquet: row group 1, row 20, column `gx`: IMU value NaN is not finite"],
     );
     let out = dir.join("nan-kept");
-    let (code, stdout, stderr) = run(&[
-        &"run",
-        &p,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--out",
-        &out,
-    ]);
+    let (code, stdout, stderr) = run_6d(&p, &out);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(
         stdout.contains("missing IMU values (NaN or infinite): 1 sample(s)"),
@@ -386,16 +391,7 @@ fn bad_fleet_files_are_refused_with_their_place() {
         (0..rows).map(|r| (r / 2) as f32 * 0.01).collect::<Vec<_>>(),
     ));
     write_parquet(&p, replace(fleet_columns(rows), "t", t32), 16);
-    let (code, stdout, stderr) = run(&[
-        &"run",
-        &p,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--out",
-        &dir.join("f32"),
-    ]);
+    let (code, stdout, stderr) = run_6d(&p, &dir.join("f32"));
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stdout.contains(&format!("{rows} samples")), "{stdout}");
 
@@ -450,16 +446,7 @@ fn empty_record_batch_is_skipped_and_noted() {
     w.write(&batch.slice(10, 10)).unwrap();
     w.finish().unwrap();
     let out = dir.join("o");
-    let (code, stdout, stderr) = run(&[
-        &"run",
-        &p,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--out",
-        &out,
-    ]);
+    let (code, stdout, stderr) = run_6d(&p, &out);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(
         stderr.contains("gaps.arrow: 1 record batch(es) without rows skipped: [1]"),
