@@ -1,25 +1,4 @@
 //! [`FleetRunner`]: a fleet of devices streamed through the batch engine in blocks of rows.
-//!
-//! A fleet is a sequence of rows, each a sample of one device (its channel index) at one
-//! time. Rows of different devices may interleave in any way; rows of one device must come
-//! in time order. The runner keeps one filter per device in SIMD lanes (device `d` is lane
-//! `d % LANES` of chunk `d / LANES`) and nothing else but each device's last time stamp, so
-//! memory grows with the number of devices, never with the length of the recordings.
-//!
-//! Each device's estimates equal, bit for bit, a run of that device's rows as one
-//! [`Recording`](rootfuse_attitude::Recording) through [`run_recordings`](crate::run_recordings)
-//! (and so through a scalar filter), whatever the block boundaries: a block runs every device
-//! that has rows in it, step `k` feeding each device its `k`-th row of the block and masking
-//! the devices that have fewer (see the crate docs on masking). The step before a device's
-//! first sample is, as [`Recording::dt`](rootfuse_attitude::Recording::dt) defines it, the
-//! step to its second sample; when that sample is not in the same block it is looked up in
-//! the next block (the caller passes it), and a device whose second sample is further away
-//! than that gets the step `0` (its first sample is skipped and counted as a `dt` rejection).
-//!
-//! Throughput depends on the order of the rows: the lanes of a chunk are busy at a step only
-//! when their devices all have a row there, so blocks in which many devices have many rows
-//! (time-major order, or devices interleaved in groups) run at the batch engine's rate, while
-//! a block holding a single device runs one lane of one chunk.
 
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use crate::recordings::{Columns, Precision, StepEstimates};
@@ -174,7 +153,28 @@ pub enum OnError {
     DropDevice,
 }
 
-/// The filters of a fleet's devices, fed block by block (see the [module docs](self)).
+/// The filters of a fleet's devices, fed block by block.
+///
+/// A fleet is a sequence of rows, each a sample of one device (its channel index) at one
+/// time. Rows of different devices may interleave in any way; rows of one device must come
+/// in time order. The runner keeps one filter per device in SIMD lanes (device `d` is lane
+/// `d % LANES` of chunk `d / LANES`) and nothing else but each device's last time stamp, so
+/// memory grows with the number of devices, never with the length of the recordings.
+///
+/// Each device's estimates equal, bit for bit, a run of that device's rows as one
+/// [`Recording`](rootfuse_attitude::Recording) through [`run_recordings`](crate::run_recordings)
+/// (and so through a scalar filter), whatever the block boundaries: a block runs every device
+/// that has rows in it, step `k` feeding each device its `k`-th row of the block and masking
+/// the devices that have fewer (see the crate docs on masking). The step before a device's
+/// first sample is, as [`Recording::dt`](rootfuse_attitude::Recording::dt) defines it, the
+/// step to its second sample; when that sample is not in the same block it is looked up in
+/// the next block (the caller passes it), and a device whose second sample is further away
+/// than that gets the step `0` (its first sample is skipped and counted as a `dt` rejection).
+///
+/// Throughput depends on the order of the rows: the lanes of a chunk are busy at a step only
+/// when their devices all have a row there, so blocks in which many devices have many rows
+/// (time-major order, or devices interleaved in groups) run at the batch engine's rate, while
+/// a block holding a single device runs one lane of one chunk.
 ///
 /// ```
 /// use rootfuse_attitude::registry::FilterSpec;
@@ -245,7 +245,7 @@ impl FleetRunner {
 
     /// Runs one block and returns its estimates row by row. `next` is the block that will
     /// follow (if known), used only for the first step of a device that has one row in
-    /// `block` (see the [module docs](self)).
+    /// `block` (see [`FleetRunner`]).
     pub fn step(
         &mut self,
         block: &FleetBlock,
