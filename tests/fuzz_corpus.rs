@@ -61,6 +61,11 @@ fn batch_engine_corpus() {
     replay("batch_engine");
 }
 
+#[test]
+fn columnar_reader_corpus() {
+    replay("columnar_reader");
+}
+
 /// Pseudo-random inputs (a fixed xorshift stream), so each body is exercised beyond the
 /// corpus, the same way on every run.
 #[test]

@@ -1,2 +1,3 @@
 //! The SIMD batch engine.
 mod engine;
+mod fleet;

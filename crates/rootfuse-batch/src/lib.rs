@@ -135,6 +135,7 @@
 #![warn(missing_docs)]
 
 mod batch;
+mod fleet;
 mod recordings;
 #[cfg(feature = "throughput")]
 mod throughput;
@@ -144,6 +145,9 @@ pub use rayon;
 
 pub use batch::{
     Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, pad_sample,
+};
+pub use fleet::{
+    BlockEstimates, FleetBlock, FleetError, FleetRunner, OnError, samples_with_missing_imu,
 };
 pub use recordings::{
     ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,

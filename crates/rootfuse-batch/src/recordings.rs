@@ -2,8 +2,9 @@
 
 use crate::batch::{Batch, ChannelSource, RejectionTotals};
 use rayon::prelude::*;
+use rootfuse_attitude::filters::SampleFlags;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-use rootfuse_attitude::{Lane, Quat, Recording, Vec3};
+use rootfuse_attitude::{Lane, Mat, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// Arithmetic precision of a batch run.
@@ -204,39 +205,16 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
         .for_each(|(chunk, (srcs, outs))| {
             let steps = srcs.iter().map(|s| s.len()).max().unwrap_or(0);
             chunk.run_sources(srcs, 0..steps, |_, chunk, active| {
-                let filter = chunk.filter();
-                let (q, b) = (filter.quat(), filter.bias());
-                let cov = if columns.covariance {
-                    filter.attitude_covariance()
-                } else {
-                    None
-                };
-                let flags = columns.flags.then(|| filter.flags());
+                let view = StepEstimates::lanes(chunk.filter(), columns);
                 for (i, o) in outs.iter_mut().enumerate() {
                     if (active >> i) & 1 == 0 {
                         continue;
                     }
-                    let q = q.lane(i);
-                    o.quat
-                        .push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
-                    if columns.bias {
-                        let b = b.lane(i);
-                        o.bias.push(Vec3::new(b.x.into(), b.y.into(), b.z.into()));
-                    }
-                    if let Some(p) = &cov {
-                        let at = |r: usize, c: usize| -> f64 { p.m[r][c].extract(i).into() };
-                        o.covariance.push([
-                            at(0, 0),
-                            at(0, 1),
-                            at(0, 2),
-                            at(1, 1),
-                            at(1, 2),
-                            at(2, 2),
-                        ]);
-                    }
-                    if let Some(f) = &flags {
-                        o.flags.push(f.bits(i));
-                    }
+                    let step = view.lane(i);
+                    o.quat.push(step.quat);
+                    o.bias.extend(step.bias);
+                    o.covariance.extend(step.covariance);
+                    o.flags.extend(step.flags);
                 }
             });
             for (i, o) in outs.iter_mut().enumerate() {
@@ -244,4 +222,58 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
             }
         });
     out
+}
+
+/// One step's estimates of every lane of a chunk, read lane by lane ([`StepLanes::lane`]).
+pub(crate) struct StepLanes<L: Lane> {
+    quat: Quat<L>,
+    bias: Option<Vec3<L>>,
+    covariance: Option<Mat<L, 3, 3>>,
+    flags: Option<SampleFlags<L>>,
+}
+
+/// One lane's estimates after one step, in `f64`; `None` for a series not collected.
+pub(crate) struct StepEstimates {
+    pub quat: Quat<f64>,
+    pub bias: Option<Vec3<f64>>,
+    pub covariance: Option<[f64; 6]>,
+    pub flags: Option<u8>,
+}
+
+impl StepEstimates {
+    /// The series of `columns` of every lane of `filter`, as they are after its last update.
+    pub(crate) fn lanes<L: Lane, F: OrientationFilter<L>>(
+        filter: &F,
+        columns: Columns,
+    ) -> StepLanes<L> {
+        StepLanes {
+            quat: filter.quat(),
+            bias: columns.bias.then(|| filter.bias()),
+            covariance: if columns.covariance {
+                filter.attitude_covariance()
+            } else {
+                None
+            },
+            flags: columns.flags.then(|| filter.flags()),
+        }
+    }
+}
+
+impl<L: Lane> StepLanes<L> {
+    /// Lane `i`'s estimates.
+    pub(crate) fn lane(&self, i: usize) -> StepEstimates {
+        let q = self.quat.lane(i);
+        StepEstimates {
+            quat: Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()),
+            bias: self.bias.map(|b| {
+                let b = b.lane(i);
+                Vec3::new(b.x.into(), b.y.into(), b.z.into())
+            }),
+            covariance: self.covariance.as_ref().map(|p| {
+                let at = |r: usize, c: usize| -> f64 { p.m[r][c].extract(i).into() };
+                [at(0, 0), at(0, 1), at(0, 2), at(1, 1), at(1, 2), at(2, 2)]
+            }),
+            flags: self.flags.as_ref().map(|f| f.bits(i)),
+        }
+    }
 }

@@ -308,16 +308,30 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationSet, String> {
 /// Applies the calibrations to a recording's raw readings, in place (the one place where
 /// `rootfuse run --calibration` corrects data).
 pub fn apply_calibration(rec: &mut Recording, set: &CalibrationSet) {
-    let apply = |cal: &Option<SensorCalibration<f64>>, v: &mut [Vec3<f64>]| {
-        if let Some(c) = cal {
-            for y in v {
-                *y = c.apply(*y);
+    set.apply(&mut rec.gyr, &mut rec.acc, rec.mag.as_deref_mut());
+}
+
+impl CalibrationSet {
+    /// Applies each sensor's calibration (`y_cal = S·(y_raw − h)`) to its readings in place;
+    /// sensors without a calibration are left as they are. Used on whole recordings
+    /// (`--offline`) and on the blocks `run` streams.
+    pub fn apply(
+        &self,
+        gyr: &mut [Vec3<f64>],
+        acc: &mut [Vec3<f64>],
+        mag: Option<&mut [Vec3<f64>]>,
+    ) {
+        let apply = |cal: &Option<SensorCalibration<f64>>, v: &mut [Vec3<f64>]| {
+            if let Some(c) = cal {
+                for y in v {
+                    *y = c.apply(*y);
+                }
             }
+        };
+        apply(&self.gyro, gyr);
+        apply(&self.acc, acc);
+        if let Some(mag) = mag {
+            apply(&self.mag, mag);
         }
-    };
-    apply(&set.gyro, &mut rec.gyr);
-    apply(&set.acc, &mut rec.acc);
-    if let Some(mag) = rec.mag.as_mut() {
-        apply(&set.mag, mag);
     }
 }

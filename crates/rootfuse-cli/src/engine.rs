@@ -1,6 +1,6 @@
 //! The CLI's view of the batch engine: every recording is one channel in SIMD lanes
 //! (`f32x8` or `f64x4`), chunks spread over the cores.
-pub use rootfuse_batch::{Columns, Precision, run_recordings, run_recordings_with};
+pub use rootfuse_batch::{Columns, Precision, run_recordings};
 
 /// `--precision` on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

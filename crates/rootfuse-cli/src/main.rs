@@ -27,6 +27,8 @@ mod filter_args;
 mod filters;
 mod plot;
 mod run;
+mod simulate;
+mod stream;
 mod stress;
 mod throughput;
 
@@ -45,9 +47,11 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Runs the built-in default job on simulated data and prints accuracy and throughput.
     Demo(demo::DemoArgs),
-    /// Runs a filter over IMU CSV files and writes one estimate file per input.
+    /// Runs a filter over IMU files (CSV, Parquet, Arrow) and writes one estimate file per input.
     #[command(after_long_help = RUN_HELP)]
     Run(run::RunArgs),
+    /// Writes a seeded fleet of simulated IMUs (with truth) as Parquet or Arrow.
+    Simulate(simulate::SimulateArgs),
     /// Scores estimate files against ground truth with the BROAD metrics.
     Eval(eval::EvalArgs),
     /// Lists every filter with its parameters, defaults and units.
@@ -69,8 +73,10 @@ accelerometer or magnetometer reading skips that correction. Each skip is counte
 orientation is held, not extrapolated.
 
 Outputs: each estimate is written to a temporary file and renamed into place, so a final \
-`<stem>.csv` is always complete. SIGINT or SIGTERM lets the file being written finish, then \
-exits with code 130; temporary files left by a killed run are removed by the next run that \
+`<stem>.csv` (`.parquet`, `.arrow`) is always complete. Inputs are streamed: read, filtered and \
+written a block of rows at a time, all files side by side, so memory does not grow with their \
+length. SIGINT or SIGTERM stops at the end of the block being run, removes the estimates in \
+progress and exits with code 130; temporary files left by a killed run are removed by the next run that \
 writes the same estimate. Two inputs with the same file name, or an --out folder in which \
 an estimate would replace an input, are refused before anything is written.";
 
@@ -89,6 +95,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args).map(|()| Outcome::Success),
         Command::Run(args) => run::run(&args),
         Command::Eval(args) => eval::run(&args).map(|()| Outcome::Success),
+        Command::Simulate(args) => simulate::run(&args).map(|()| Outcome::Success),
         Command::Stress(args) => stress::run(&args).map(|()| Outcome::Success),
         Command::Throughput(args) => throughput::run(&args).map(|()| Outcome::Success),
         Command::Filters => {

@@ -759,7 +759,8 @@ fn signal_during_writing_leaves_no_temporary_file() {
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
-    assert!(!written.is_empty() && written.len() < 4, "{written:?}");
+    // The files stream side by side, so none may be complete yet; those that are, are whole.
+    assert!(written.len() < 4, "{written:?}");
     for p in written {
         let lines = std::fs::read_to_string(&p).unwrap().lines().count();
         assert_eq!(lines, rows + 1, "{} is incomplete", p.display());

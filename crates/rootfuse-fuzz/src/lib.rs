@@ -12,12 +12,14 @@
 #![warn(missing_docs)]
 
 mod bytes;
+mod columnar;
 mod csv;
 mod engine;
 mod filter;
 mod rls;
 
 pub use bytes::Bytes;
+pub use columnar::columnar_reader;
 pub use csv::csv_reader;
 pub use engine::batch_engine;
 pub use filter::filter_update;
@@ -33,4 +35,5 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("filter_update", filter_update),
     ("rls_forms", rls_forms),
     ("batch_engine", batch_engine),
+    ("columnar_reader", columnar_reader),
 ];

@@ -302,18 +302,7 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<Recording, ReadError> {
 
 /// [`read_csv`] with a choice of what a non-finite IMU value does.
 pub fn read_csv_with(path: impl AsRef<Path>, gaps: ImuGaps) -> Result<Recording, ReadError> {
-    let path = path.as_ref();
-    let file = std::fs::File::open(path).map_err(|source| ReadError::Io {
-        file: path.to_owned(),
-        source,
-    })?;
-    // The csv reader buffers internally; a large buffer keeps a 9 MB file to a few reads.
-    let reader = std::io::BufReader::with_capacity(1 << 16, file);
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    read_recording(reader, path, &name, gaps)
+    CsvBlocks::open(path, gaps)?.read_all()
 }
 
 /// Reads one CSV recording from any reader; `file` is only used in error messages and `name`
@@ -323,158 +312,248 @@ pub fn read_csv_from<R: std::io::Read>(
     file: impl AsRef<Path>,
     name: &str,
 ) -> Result<Recording, ReadError> {
-    read_recording(reader, file.as_ref(), name, ImuGaps::Refuse)
+    CsvBlocks::new(reader, file, name, ImuGaps::Refuse)?.read_all()
 }
 
-fn read_recording<R: std::io::Read>(
-    reader: R,
-    file: &Path,
-    name: &str,
+/// A CSV recording read a block of rows at a time, so that a long recording can be processed
+/// in bounded memory; the same format, checks and errors as [`read_csv_with`] (which reads
+/// the whole file through it).
+///
+/// ```
+/// use rootfuse_io::{CsvBlocks, ImuGaps};
+///
+/// let text = "t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9.8\n0.01,0,0,0,0,0,9.8\n0.02,0,0,0,0,0,9.8\n";
+/// let mut blocks = CsvBlocks::new(text.as_bytes(), "mem.csv", "mem", ImuGaps::Refuse).unwrap();
+/// let mut rec = blocks.empty_recording();
+/// assert_eq!(blocks.read_into(&mut rec, 2).unwrap(), 2);
+/// rec.t.clear();
+/// assert_eq!(blocks.read_into(&mut rec, 2).unwrap(), 1);
+/// assert_eq!(rec.t, [0.02]);
+/// ```
+pub struct CsvBlocks<R: std::io::Read> {
+    rdr: csv::Reader<R>,
+    record: csv::ByteRecord,
+    file: PathBuf,
+    name: String,
+    header: Vec<String>,
+    layout: Layout,
     gaps: ImuGaps,
-) -> Result<Recording, ReadError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        // Field counts are checked here so that the error can name the line.
-        .flexible(true)
-        .buffer_capacity(1 << 16)
-        .from_reader(reader);
-    let mut record = csv::ByteRecord::new();
+    previous_t: f64,
+}
 
-    // Header.
-    let got = rdr
-        .read_byte_record(&mut record)
-        .map_err(|e| csv_error(file, e))?;
-    if !got {
-        return Err(ReadError::Empty {
-            file: file.to_owned(),
-        });
+impl CsvBlocks<std::io::BufReader<std::fs::File>> {
+    /// Opens a CSV recording and reads its header; the recording is named after the file stem.
+    pub fn open(path: impl AsRef<Path>, gaps: ImuGaps) -> Result<Self, ReadError> {
+        let path = path.as_ref();
+        let file = std::fs::File::open(path).map_err(|source| ReadError::Io {
+            file: path.to_owned(),
+            source,
+        })?;
+        // The csv reader buffers internally; a large buffer keeps a 9 MB file to a few reads.
+        let reader = std::io::BufReader::with_capacity(1 << 16, file);
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Self::new(reader, path, &name, gaps)
     }
-    let mut header: Vec<String> = record
-        .iter()
-        .map(|f| String::from_utf8_lossy(trim(f)).into_owned())
-        .collect();
-    // Spreadsheet programs like to start UTF-8 files with a byte-order mark.
-    if let Some(first) = header.first_mut()
-        && let Some(rest) = first.strip_prefix('\u{feff}')
-    {
-        *first = rest.to_string();
-    }
-    let layout = Layout::from_header(file, &header)?;
-    let n_fields = header.len();
+}
 
-    let mut rec = Recording {
-        name: name.to_string(),
-        ..Recording::default()
-    };
-    let mut mag = layout.mag.map(|_| Vec::new());
-    let mut truth = layout.quat.map(|_| Vec::new());
-    let mut use_mask = layout.use_col.map(|_| Vec::new());
-    let mut previous_t = f64::NEG_INFINITY;
-
-    while let Some(line) = next_row(&mut rdr, &mut record, file, n_fields)? {
-        let cell = |col: usize| -> Result<f64, ReadError> {
-            parse_f64(&record[col]).ok_or_else(|| ReadError::NotNumeric {
+impl<R: std::io::Read> CsvBlocks<R> {
+    /// Reads the header from `reader`; `file` is only used in error messages and `name`
+    /// becomes [`Recording::name`].
+    pub fn new(
+        reader: R,
+        file: impl AsRef<Path>,
+        name: &str,
+        gaps: ImuGaps,
+    ) -> Result<Self, ReadError> {
+        let file = file.as_ref();
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            // Field counts are checked here so that the error can name the line.
+            .flexible(true)
+            .buffer_capacity(1 << 16)
+            .from_reader(reader);
+        let mut record = csv::ByteRecord::new();
+        let got = rdr
+            .read_byte_record(&mut record)
+            .map_err(|e| csv_error(file, e))?;
+        if !got {
+            return Err(ReadError::Empty {
                 file: file.to_owned(),
-                line,
-                column: header[col].clone(),
-                index: col + 1,
-                text: shown(&record[col]),
-            })
-        };
-        let imu = |col: usize| -> Result<f64, ReadError> {
-            let v = cell(col)?;
-            if v.is_finite() || gaps == ImuGaps::Keep {
-                Ok(v)
-            } else {
-                Err(ReadError::NonFiniteImu {
+            });
+        }
+        let mut header: Vec<String> = record
+            .iter()
+            .map(|f| String::from_utf8_lossy(trim(f)).into_owned())
+            .collect();
+        // Spreadsheet programs like to start UTF-8 files with a byte-order mark.
+        if let Some(first) = header.first_mut()
+            && let Some(rest) = first.strip_prefix('\u{feff}')
+        {
+            *first = rest.to_string();
+        }
+        let layout = Layout::from_header(file, &header)?;
+        Ok(Self {
+            rdr,
+            record,
+            file: file.to_owned(),
+            name: name.to_string(),
+            header,
+            layout,
+            gaps,
+            previous_t: f64::NEG_INFINITY,
+        })
+    }
+
+    /// True when the file has magnetometer columns.
+    pub fn has_mag(&self) -> bool {
+        self.layout.mag.is_some()
+    }
+
+    /// A recording with no rows and the file's column groups (`mag`, `truth`, `use_mask`
+    /// present or not), to read blocks into.
+    pub fn empty_recording(&self) -> Recording {
+        Recording {
+            name: self.name.clone(),
+            mag: self.layout.mag.map(|_| Vec::new()),
+            truth: self.layout.quat.map(|_| Vec::new()),
+            use_mask: self.layout.use_col.map(|_| Vec::new()),
+            ..Recording::default()
+        }
+    }
+
+    /// Reads every remaining row into a recording.
+    pub fn read_all(mut self) -> Result<Recording, ReadError> {
+        let mut rec = self.empty_recording();
+        self.read_into(&mut rec, usize::MAX)?;
+        Ok(rec)
+    }
+
+    /// Reads up to `max_rows` more rows and appends them to `rec` (made by
+    /// [`empty_recording`](Self::empty_recording)); returns how many were read, 0 at the end
+    /// of the file. Time must increase across blocks too.
+    pub fn read_into(&mut self, rec: &mut Recording, max_rows: usize) -> Result<usize, ReadError> {
+        let Self {
+            rdr,
+            record,
+            file,
+            header,
+            layout,
+            gaps,
+            previous_t,
+            ..
+        } = self;
+        let (file, header, gaps) = (file.as_path(), header.as_slice(), *gaps);
+        let mut read = 0;
+        while read < max_rows {
+            let Some(line) = next_row(rdr, record, file, header.len())? else {
+                break;
+            };
+            read += 1;
+            let record = &*record;
+            let cell = |col: usize| -> Result<f64, ReadError> {
+                parse_f64(&record[col]).ok_or_else(|| ReadError::NotNumeric {
                     file: file.to_owned(),
                     line,
                     column: header[col].clone(),
                     index: col + 1,
-                    value: v,
+                    text: shown(&record[col]),
                 })
-            }
-        };
-
-        let tc = layout.required[0];
-        let t = cell(tc)?;
-        if !t.is_finite() {
-            return Err(ReadError::NonFiniteTime {
-                file: file.to_owned(),
-                line,
-                column: header[tc].clone(),
-                index: tc + 1,
-                value: t,
-            });
-        }
-        if t <= previous_t {
-            return Err(ReadError::NonMonotonicTime {
-                file: file.to_owned(),
-                line,
-                column: header[tc].clone(),
-                index: tc + 1,
-                value: t,
-                previous: previous_t,
-            });
-        }
-        previous_t = t;
-        let r = &layout.required;
-        rec.t.push(t);
-        rec.gyr.push(Vec3::new(imu(r[1])?, imu(r[2])?, imu(r[3])?));
-        rec.acc.push(Vec3::new(imu(r[4])?, imu(r[5])?, imu(r[6])?));
-        if let (Some(cols), Some(out)) = (&layout.mag, &mut mag) {
-            out.push(Vec3::new(imu(cols[0])?, imu(cols[1])?, imu(cols[2])?));
-        }
-        if let (Some(cols), Some(out)) = (&layout.quat, &mut truth) {
-            let mut q = [0.0; 4];
-            for (k, &c) in cols.iter().enumerate() {
-                let v = cell(c)?;
-                if v.is_infinite() {
-                    return Err(ReadError::InfiniteTruth {
+            };
+            let imu = |col: usize| -> Result<f64, ReadError> {
+                let v = cell(col)?;
+                if v.is_finite() || gaps == ImuGaps::Keep {
+                    Ok(v)
+                } else {
+                    Err(ReadError::NonFiniteImu {
                         file: file.to_owned(),
                         line,
-                        column: header[c].clone(),
-                        index: c + 1,
+                        column: header[col].clone(),
+                        index: col + 1,
                         value: v,
-                    });
-                }
-                q[k] = v;
-            }
-            // A partly known quaternion is no orientation: unknown as a whole.
-            if q.iter().any(|v| v.is_nan()) {
-                q = [f64::NAN; 4];
-            } else if let Some(norm) = not_unit(&q) {
-                return Err(ReadError::NotUnitQuaternion {
-                    file: file.to_owned(),
-                    line,
-                    columns: "qw,qx,qy,qz",
-                    norm,
-                });
-            }
-            out.push(Quat::new(q[0], q[1], q[2], q[3]));
-        }
-        if let (Some(c), Some(out)) = (layout.use_col, &mut use_mask) {
-            let f = trim(&record[c]);
-            let u = match f {
-                b"1" => true,
-                b"0" => false,
-                _ => {
-                    return Err(ReadError::BadUse {
-                        file: file.to_owned(),
-                        line,
-                        column: header[c].clone(),
-                        index: c + 1,
-                        text: shown(&record[c]),
-                    });
+                    })
                 }
             };
-            out.push(u);
+
+            let tc = layout.required[0];
+            let t = cell(tc)?;
+            if !t.is_finite() {
+                return Err(ReadError::NonFiniteTime {
+                    file: file.to_owned(),
+                    line,
+                    column: header[tc].clone(),
+                    index: tc + 1,
+                    value: t,
+                });
+            }
+            if t <= *previous_t {
+                return Err(ReadError::NonMonotonicTime {
+                    file: file.to_owned(),
+                    line,
+                    column: header[tc].clone(),
+                    index: tc + 1,
+                    value: t,
+                    previous: *previous_t,
+                });
+            }
+            *previous_t = t;
+            let r = &layout.required;
+            rec.t.push(t);
+            rec.gyr.push(Vec3::new(imu(r[1])?, imu(r[2])?, imu(r[3])?));
+            rec.acc.push(Vec3::new(imu(r[4])?, imu(r[5])?, imu(r[6])?));
+            if let (Some(cols), Some(out)) = (&layout.mag, &mut rec.mag) {
+                out.push(Vec3::new(imu(cols[0])?, imu(cols[1])?, imu(cols[2])?));
+            }
+            if let (Some(cols), Some(out)) = (&layout.quat, &mut rec.truth) {
+                let mut q = [0.0; 4];
+                for (k, &c) in cols.iter().enumerate() {
+                    let v = cell(c)?;
+                    if v.is_infinite() {
+                        return Err(ReadError::InfiniteTruth {
+                            file: file.to_owned(),
+                            line,
+                            column: header[c].clone(),
+                            index: c + 1,
+                            value: v,
+                        });
+                    }
+                    q[k] = v;
+                }
+                // A partly known quaternion is no orientation: unknown as a whole.
+                if q.iter().any(|v| v.is_nan()) {
+                    q = [f64::NAN; 4];
+                } else if let Some(norm) = not_unit(&q) {
+                    return Err(ReadError::NotUnitQuaternion {
+                        file: file.to_owned(),
+                        line,
+                        columns: "qw,qx,qy,qz",
+                        norm,
+                    });
+                }
+                out.push(Quat::new(q[0], q[1], q[2], q[3]));
+            }
+            if let (Some(c), Some(out)) = (layout.use_col, &mut rec.use_mask) {
+                let f = trim(&record[c]);
+                let u = match f {
+                    b"1" => true,
+                    b"0" => false,
+                    _ => {
+                        return Err(ReadError::BadUse {
+                            file: file.to_owned(),
+                            line,
+                            column: header[c].clone(),
+                            index: c + 1,
+                            text: shown(&record[c]),
+                        });
+                    }
+                };
+                out.push(u);
+            }
         }
+        Ok(read)
     }
-    rec.mag = mag;
-    rec.truth = truth;
-    rec.use_mask = use_mask;
-    Ok(rec)
 }
 
 /// Orientation estimates read back from a `t,qw,qx,qy,qz` file (what [`write_estimates`] and
@@ -880,7 +959,7 @@ fn check_len(file: &Path, column: &str, expected: usize, found: usize) -> Result
     }
 }
 
-fn check_name(file: &Path, name: &str, taken: &[&str]) -> Result<(), WriteError> {
+pub(crate) fn check_name(file: &Path, name: &str, taken: &[&str]) -> Result<(), WriteError> {
     let bad = name.is_empty()
         || taken.contains(&name)
         || name.contains([',', '"', '\n', '\r'])
@@ -896,7 +975,7 @@ fn check_name(file: &Path, name: &str, taken: &[&str]) -> Result<(), WriteError>
 }
 
 /// Appends `,v` for each value (the leading comma is stripped per row by the caller).
-fn push_all(row: &mut String, values: &[f64]) {
+pub(crate) fn push_all(row: &mut String, values: &[f64]) {
     for v in values {
         // Both forms print the shortest string that parses back to the same bits; `{}` never
         // uses an exponent, which would spell 1e-24 with 24 zeros. NaN is "NaN".
@@ -954,32 +1033,23 @@ fn write_atomic(
     n: usize,
     mut fill: impl FnMut(usize, &mut String),
 ) -> Result<(), WriteError> {
-    let io = |source| WriteError::Io {
-        file: path.to_owned(),
-        source,
-    };
-    let tmp = temporary_path(path, std::process::id());
+    let mut file = crate::AtomicFile::create(path)?;
     let result = (|| -> Result<(), std::io::Error> {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
-        w.write_all(names.join(",").as_bytes())?;
-        w.write_all(b"\n")?;
+        file.write_all(names.join(",").as_bytes())?;
+        file.write_all(b"\n")?;
         let mut row = String::with_capacity(256);
         for i in 0..n {
             row.clear();
             fill(i, &mut row);
             // Every field was written with a leading comma.
-            w.write_all(&row.as_bytes()[1.min(row.len())..])?;
-            w.write_all(b"\n")?;
+            file.write_all(&row.as_bytes()[1.min(row.len())..])?;
+            file.write_all(b"\n")?;
         }
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        // Data on disk before the rename makes it visible: no empty file after a crash.
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
+        Ok(())
     })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io(e));
-    }
-    Ok(())
+    result.map_err(|source| WriteError::Io {
+        file: path.to_owned(),
+        source,
+    })?;
+    file.finish()
 }

@@ -36,7 +36,9 @@
 
 #![warn(missing_docs)]
 
+mod atomic;
 mod csv_format;
 
+pub use atomic::{AtomicFile, CsvEstimateWriter};
 pub use csv_format::*;
 pub use rootfuse_attitude::Recording;

@@ -1,0 +1,369 @@
+//! `rootfuse run` streaming: inputs read, filtered and written a block of rows at a time, so
+//! memory holds the filters' state and a few blocks, never a whole recording.
+//!
+//! CSV inputs are one device each and are read side by side (a block of every file per
+//! step), so several files share the SIMD lanes as before. Parquet and Arrow inputs are one
+//! fleet: read in order, their rows grouped by the `device` column (devices keep their
+//! filters from one file to the next, so a folder of files split by time runs as one).
+use crate::run::{exit_interrupted, interrupted};
+use rootfuse_attitude::OrientationFilter;
+use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_batch::{
+    BlockEstimates, Columns, FleetBlock, FleetRunner, OnError, Precision, RejectionTotals,
+};
+use rootfuse_columnar::{
+    BLOCK_ROWS, ColumnarError, Devices, EstimateWriter, FleetChunk, FleetReader, Format, ImuGaps,
+    Part, estimate_names,
+};
+use rootfuse_io::CsvBlocks;
+use std::path::{Path, PathBuf};
+
+/// What the run asks for, shared by both input kinds.
+pub struct Job<'a> {
+    pub spec: &'a FilterSpec,
+    pub precision: Precision,
+    pub columns: Columns,
+    pub format: Format,
+    pub gaps: ImuGaps,
+    pub keep_going: bool,
+    /// The filter uses the magnetometer; `dof_explicit`: the user asked for it.
+    pub nine_d: bool,
+    pub dof_explicit: bool,
+    /// `--calibration`: applied to every block of raw readings before the filter sees it.
+    pub calibration: Option<&'a crate::calibrate::CalibrationSet>,
+}
+
+impl Job<'_> {
+    /// Applies `--calibration` (if any) to a block of raw readings.
+    pub fn calibrate(&self, block: &mut FleetBlock) {
+        if let Some(cal) = self.calibration {
+            cal.apply(&mut block.gyr, &mut block.acc, block.mag.as_deref_mut());
+        }
+    }
+}
+
+/// Totals of a run, for the summary lines.
+#[derive(Default)]
+pub struct Totals {
+    pub files: usize,
+    pub failed_files: usize,
+    pub failed_devices: usize,
+    pub samples: u64,
+    pub missing_imu: u64,
+    pub files_with_missing_imu: usize,
+    pub rejections: RejectionTotals,
+}
+
+impl Totals {
+    /// Counts a file that could not be completed: reported under `--keep-going`, else the
+    /// run's error.
+    pub fn fail(&mut self, e: String, keep_going: bool) -> Result<(), String> {
+        if !keep_going {
+            return Err(e);
+        }
+        eprintln!("error: {e}");
+        self.failed_files += 1;
+        Ok(())
+    }
+
+    /// Counts a completed file's samples with missing IMU values.
+    pub fn missing(&mut self, missing_imu: u64) {
+        self.missing_imu += missing_imu;
+        self.files_with_missing_imu += usize::from(missing_imu > 0);
+    }
+}
+
+pub fn add(totals: &mut RejectionTotals, r: RejectionTotals) {
+    totals.dt += r.dt;
+    totals.gyr += r.gyr;
+    totals.acc += r.acc;
+    totals.mag += r.mag;
+    totals.gated += r.gated;
+    totals.mag_disturbed += r.mag_disturbed;
+}
+
+/// Refuses (explicit 9D) or notes (the filter's default) a file without magnetometer columns.
+pub fn check_mag(job: &Job, file: &Path, has_mag: bool) -> Result<(), String> {
+    if job.nine_d && !has_mag {
+        let message = format!(
+            "{}: no magnetometer columns (mx,my,mz) for 9D operation; use --dof 6",
+            file.display()
+        );
+        if job.dof_explicit {
+            return Err(message);
+        }
+        eprintln!(
+            "note: {message} (the filter's default is 9D: every magnetometer correction is skipped)"
+        );
+    }
+    Ok(())
+}
+
+/// One CSV input being streamed.
+struct CsvInput {
+    blocks: CsvBlocks<std::io::BufReader<std::fs::File>>,
+    buffer: rootfuse_attitude::Recording,
+    writer: EstimateWriter,
+    device: u32,
+    missing_imu: u64,
+}
+
+/// Streams CSV recordings side by side, `files[i]` estimated into `outs[i]`.
+pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
+    let mut totals = Totals::default();
+    let mut runner = FleetRunner::new(job.spec, job.precision, job.columns);
+    let names = estimate_names(job.columns, runner_has_covariance(job));
+    // A block of all files together stays about BLOCK_ROWS rows (at least 2 per file, so
+    // that every file's first step is known from its first block).
+    let rows_per_file = (BLOCK_ROWS / files.len().max(1)).max(256);
+    let mut inputs: Vec<CsvInput> = Vec::new();
+    for (i, (file, out)) in files.iter().zip(outs).enumerate() {
+        let opened = (|| -> Result<CsvInput, String> {
+            let mut blocks = CsvBlocks::open(file, job.gaps).map_err(|e| e.to_string())?;
+            let mut buffer = blocks.empty_recording();
+            if blocks
+                .read_into(&mut buffer, rows_per_file)
+                .map_err(|e| e.to_string())?
+                == 0
+            {
+                return Err(format!(
+                    "{}: line 2: no data rows (the file has only a header)",
+                    file.display()
+                ));
+            }
+            check_mag(job, file, blocks.has_mag())?;
+            let writer =
+                EstimateWriter::create(out, job.format, None, &names).map_err(|e| e.to_string())?;
+            Ok(CsvInput {
+                blocks,
+                buffer,
+                writer,
+                device: i as u32,
+                missing_imu: 0,
+            })
+        })();
+        match opened {
+            Ok(input) => inputs.push(input),
+            Err(e) => totals.fail(e, job.keep_going)?,
+        }
+    }
+    if inputs.is_empty() {
+        return Err("no input could be read".into());
+    }
+    let devices = Devices::default();
+    while !inputs.is_empty() {
+        if interrupted() {
+            // Dropping the writers removes their temporary files.
+            drop(inputs);
+            exit_interrupted();
+        }
+        let (mut block, ranges) = csv_block(&inputs);
+        job.calibrate(&mut block);
+        // CSV rows were checked (time finite, increasing) by the reader already.
+        let est = runner
+            .step(&block, None, OnError::Stop)
+            .map_err(|e| e.to_string())?;
+        let chunk = FleetChunk {
+            block,
+            device_column: None,
+            part: Part::Block,
+            first_row: 0,
+            missing_imu: 0,
+        };
+        let mut still = Vec::with_capacity(inputs.len());
+        for (mut input, range) in inputs.into_iter().zip(ranges) {
+            totals.samples += range.len() as u64;
+            input.missing_imu += chunk.block.rows_with_missing_imu(range.clone()) as u64;
+            let step = (|| -> Result<bool, String> {
+                input
+                    .writer
+                    .write(&chunk, &devices, &est, range)
+                    .map_err(|e| e.to_string())?;
+                input.buffer = input.blocks.empty_recording();
+                let read = input
+                    .blocks
+                    .read_into(&mut input.buffer, rows_per_file)
+                    .map_err(|e| e.to_string())?;
+                Ok(read > 0)
+            })();
+            match step {
+                Ok(true) => still.push(input),
+                Ok(false) => {
+                    input.writer.finish().map_err(|e| e.to_string())?;
+                    totals.files += 1;
+                    add(&mut totals.rejections, runner.rejections(input.device));
+                    totals.missing(input.missing_imu);
+                }
+                Err(e) => totals.fail(e, job.keep_going)?,
+            }
+        }
+        inputs = still;
+    }
+    Ok(totals)
+}
+
+/// Whether the estimate has covariance columns: the filter must carry one.
+fn runner_has_covariance(job: &Job) -> bool {
+    job.columns.covariance && job.spec.build::<f64>().attitude_covariance().is_some()
+}
+
+/// The buffered rows of every input as one block, with each input's row range in it.
+fn csv_block(inputs: &[CsvInput]) -> (FleetBlock, Vec<std::ops::Range<usize>>) {
+    let rows: usize = inputs.iter().map(|i| i.buffer.len()).sum();
+    let any_mag = inputs.iter().any(|i| i.buffer.mag.is_some());
+    let mut block = FleetBlock {
+        device: Vec::with_capacity(rows),
+        t: Vec::with_capacity(rows),
+        gyr: Vec::with_capacity(rows),
+        acc: Vec::with_capacity(rows),
+        mag: any_mag.then(|| Vec::with_capacity(rows)),
+    };
+    let mut ranges = Vec::with_capacity(inputs.len());
+    for input in inputs {
+        let rec = &input.buffer;
+        let start = block.len();
+        block
+            .device
+            .extend(std::iter::repeat_n(input.device, rec.len()));
+        block.t.extend(&rec.t);
+        block.gyr.extend(&rec.gyr);
+        block.acc.extend(&rec.acc);
+        if let Some(mag) = &mut block.mag {
+            // A 6D file among 9D ones: NaN field, exactly what a 6D sample carries.
+            match &rec.mag {
+                Some(m) => mag.extend(m),
+                None => mag.extend(std::iter::repeat_n(
+                    rootfuse_attitude::Vec3::new(f64::NAN, f64::NAN, f64::NAN),
+                    rec.len(),
+                )),
+            }
+        }
+        ranges.push(start..block.len());
+    }
+    (block, ranges)
+}
+
+/// Streams Parquet/Arrow fleet files in order, `files[i]` estimated into `outs[i]`.
+pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
+    let mut totals = Totals::default();
+    let mut runner = FleetRunner::new(job.spec, job.precision, job.columns);
+    let names = estimate_names(job.columns, runner_has_covariance(job));
+    let mut devices = Devices::default();
+    let on_error = if job.keep_going {
+        OnError::DropDevice
+    } else {
+        OnError::Stop
+    };
+    let mut any = false;
+    for (file, out) in files.iter().zip(outs) {
+        let mut file_totals = Totals::default();
+        let result = run_fleet_file(
+            job,
+            &mut runner,
+            &mut devices,
+            on_error,
+            &names,
+            file,
+            out,
+            &mut file_totals,
+        );
+        totals.failed_devices += file_totals.failed_devices;
+        match result {
+            Ok(()) => {
+                any = true;
+                totals.files += 1;
+                totals.samples += file_totals.samples;
+                totals.missing(file_totals.missing_imu);
+            }
+            Err(e) => totals.fail(e, job.keep_going)?,
+        }
+    }
+    if !any {
+        return Err("no input could be read".into());
+    }
+    for d in 0..devices.len() {
+        add(&mut totals.rejections, runner.rejections(d as u32));
+    }
+    Ok(totals)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_fleet_file(
+    job: &Job,
+    runner: &mut FleetRunner,
+    devices: &mut Devices,
+    on_error: OnError,
+    names: &[&str],
+    file: &Path,
+    out: &Path,
+    totals: &mut Totals,
+) -> Result<(), String> {
+    let text = |e: ColumnarError| e.to_string();
+    let mut reader = FleetReader::open(file, job.gaps).map_err(text)?;
+    check_mag(job, file, reader.has_mag())?;
+    let mut writer =
+        EstimateWriter::create(out, job.format, reader.device_type(), names).map_err(text)?;
+    let mut current = reader.next_chunk(devices).map_err(text)?;
+    if current.is_none() {
+        return Err(ColumnarError::Empty {
+            file: file.to_owned(),
+        }
+        .to_string());
+    }
+    while let Some(mut chunk) = current {
+        if interrupted() {
+            drop(writer);
+            exit_interrupted();
+        }
+        job.calibrate(&mut chunk.block);
+        let next = reader.next_chunk(devices).map_err(text)?;
+        let est: BlockEstimates = runner
+            .step(&chunk.block, next.as_ref().map(|c| &c.block), on_error)
+            .map_err(|e| locate(file, &chunk, devices, e))?;
+        for e in &est.failures {
+            eprintln!(
+                "error: {} (device {} left out from this row on)",
+                locate(file, &chunk, devices, *e),
+                devices.label(e.device())
+            );
+            totals.failed_devices += 1;
+        }
+        writer
+            .write(&chunk, devices, &est, 0..chunk.block.len())
+            .map_err(text)?;
+        totals.samples += est.kept.iter().filter(|&&k| k).count() as u64;
+        totals.missing_imu += chunk.missing_imu as u64;
+        current = next;
+    }
+    if !reader.empty_parts().is_empty() {
+        eprintln!(
+            "note: {}: {} {} without rows skipped: {:?}",
+            file.display(),
+            reader.empty_parts().len(),
+            if reader.format_name() == "Parquet" {
+                "row group(s)"
+            } else {
+                "record batch(es)"
+            },
+            reader.empty_parts()
+        );
+    }
+    writer.finish().map_err(text)
+}
+
+/// A fleet error of a block as a message naming the file, row group, row and device.
+fn locate(
+    file: &Path,
+    chunk: &FleetChunk,
+    devices: &Devices,
+    e: rootfuse_batch::FleetError,
+) -> String {
+    ColumnarError::Time {
+        file: file.to_owned(),
+        part: chunk.part,
+        row: chunk.first_row + e.row() as u64,
+        device: devices.label(e.device()).to_string(),
+        source: e,
+    }
+    .to_string()
+}

@@ -1,0 +1,78 @@
+//! Recordings and fleets of IMUs as Parquet and Arrow IPC files, read and written a block of
+//! rows at a time.
+//!
+//! Depends on `rootfuse-attitude`, `rootfuse-io` (atomic files, CSV estimates),
+//! `rootfuse-batch` ([`FleetBlock`](rootfuse_batch::FleetBlock), the rows the fleet runner
+//! takes), and the Apache Arrow crates `arrow` (IPC) and `parquet` (with Snappy and Zstd).
+//!
+//! # Format
+//! The columns and units of the CSV format (`docs/conventions.md` in the repository), found by
+//! name in any order, float32 or float64: `t` (s, strictly increasing per device),
+//! `gx,gy,gz` (rad/s), `ax,ay,az` (m/s²), optionally `mx,my,mz` (any unit, all three or
+//! none), plus an optional `device` column (integer or string) saying which device a row
+//! belongs to: rows of many devices may interleave in any order; without it the file is one
+//! device named after its stem. Other columns (truth `qw..qz`, `use`) are ignored by
+//! [`FleetReader`]. A null IMU value is read as NaN, a dropped packet (kept for the filter to
+//! skip, or refused with [`ImuGaps::Refuse`]). Parquet files are read one row group at a time
+//! and Arrow IPC files (the file format, `.arrow`) one record batch at a time, in blocks of at
+//! most [`BLOCK_ROWS`] rows.
+//!
+//! Estimates ([`EstimateWriter`]) are `device` (when the input had one, same type), `t`,
+//! `qw,qx,qy,qz` (sensor to earth, ENU) and the optional `bx,by,bz`, `p_xx..p_zz`, `flags`
+//! of the CSV estimates.
+//!
+//! # Errors
+//! Every problem is a [`ColumnarError`] naming the file and, where it is about a place in the
+//! file, the row group (or record batch), the 0-based file row and the column. Nothing here
+//! panics on data (the fuzz target `columnar_reader` checks it on arbitrary bytes).
+//!
+//! # Writing
+//! Outputs go to a temporary file renamed into place when complete
+//! ([`rootfuse_io::AtomicFile`]): an error or an interruption leaves no partial file.
+#![warn(missing_docs)]
+
+mod error;
+mod reader;
+mod recordings;
+mod writer;
+
+pub use error::{ColumnarError, Part};
+pub use reader::{BLOCK_ROWS, Devices, FleetChunk, FleetReader, ImuGaps};
+pub use recordings::FleetFileWriter;
+pub use writer::{EstimateWriter, ROW_GROUP_ROWS, estimate_names};
+
+/// The name of the device column.
+pub const DEVICE: &str = "device";
+
+/// A file format, chosen by `--format` or by the file's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// CSV (`.csv`).
+    Csv,
+    /// Apache Parquet (`.parquet`, `.pq`).
+    Parquet,
+    /// Arrow IPC, file format (`.arrow`, `.feather`, `.ipc`).
+    Arrow,
+}
+
+impl Format {
+    /// The format of a path by its extension (case-insensitive), `None` for another one.
+    pub fn of_path(path: &std::path::Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "csv" => Some(Self::Csv),
+            "parquet" | "pq" => Some(Self::Parquet),
+            "arrow" | "feather" | "ipc" => Some(Self::Arrow),
+            _ => None,
+        }
+    }
+
+    /// The usual extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Self::Csv => "csv",
+            Self::Parquet => "parquet",
+            Self::Arrow => "arrow",
+        }
+    }
+}

@@ -1,0 +1,541 @@
+//! [`FleetReader`]: a Parquet or Arrow IPC file read a block of rows at a time.
+
+use crate::error::{ColumnarError, Part};
+use crate::{DEVICE, Format};
+use arrow::array::{Array, ArrayRef, AsArray, RecordBatch};
+use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
+use parquet::arrow::ProjectionMask;
+use parquet::arrow::arrow_reader::{
+    ArrowReaderMetadata, ArrowReaderOptions, ParquetRecordBatchReader,
+    ParquetRecordBatchReaderBuilder,
+};
+use rootfuse_attitude::Vec3;
+use rootfuse_batch::FleetBlock;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Rows per block read (and per record batch written): a few MB per block whatever the
+/// length of the file.
+pub const BLOCK_ROWS: usize = 65_536;
+
+const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
+const MAG: [&str; 3] = ["mx", "my", "mz"];
+
+/// A device as written in the file: an integer or a string.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+enum DeviceKey {
+    Int(i64),
+    Text(String),
+}
+
+/// The devices of a fleet, numbered `0..` in order of first appearance across all files
+/// read with it (so a device keeps its filter from one file to the next).
+#[derive(Clone, Debug, Default)]
+pub struct Devices {
+    index: HashMap<DeviceKey, u32>,
+    labels: Vec<String>,
+}
+
+impl Devices {
+    /// Number of devices seen.
+    pub fn len(&self) -> usize {
+        self.labels.len()
+    }
+
+    /// True before any device was seen.
+    pub fn is_empty(&self) -> bool {
+        self.labels.is_empty()
+    }
+
+    /// Device `d` as written in its file (the file stem for a file without a device column).
+    pub fn label(&self, d: u32) -> &str {
+        self.labels.get(d as usize).map_or("", String::as_str)
+    }
+
+    fn id(&mut self, key: DeviceKey) -> u32 {
+        if let Some(&d) = self.index.get(&key) {
+            return d;
+        }
+        let d = self.labels.len() as u32;
+        self.labels.push(match &key {
+            DeviceKey::Int(v) => v.to_string(),
+            DeviceKey::Text(s) => s.clone(),
+        });
+        self.index.insert(key, d);
+        d
+    }
+
+    /// The device named `label` (a file without a device column is one device, named after
+    /// its stem).
+    pub fn named(&mut self, label: &str) -> u32 {
+        self.id(DeviceKey::Text(label.to_string()))
+    }
+}
+
+/// One block of a file: the rows for the fleet runner and where they came from.
+#[derive(Clone, Debug)]
+pub struct FleetChunk {
+    /// The rows, device numbers from [`Devices`].
+    pub block: FleetBlock,
+    /// The file's device column for these rows, as read (written back unchanged); `None`
+    /// when the file has none.
+    pub device_column: Option<ArrayRef>,
+    /// Row group or record batch of these rows.
+    pub part: Part,
+    /// File row (0-based) of the block's first row.
+    pub first_row: u64,
+    /// Rows with a NaN, null or infinite IMU value (kept for the filter to skip and count).
+    pub missing_imu: usize,
+}
+
+/// What a reader does with a NaN, null or infinite IMU value.
+pub use rootfuse_io::ImuGaps;
+
+enum Source {
+    Parquet {
+        file: std::fs::File,
+        meta: ArrowReaderMetadata,
+        projection: Vec<usize>,
+        current: Option<ParquetRecordBatchReader>,
+    },
+    Ipc {
+        reader: arrow::ipc::reader::FileReader<std::io::BufReader<std::fs::File>>,
+    },
+}
+
+/// A Parquet or Arrow IPC (file format) fleet read block by block.
+///
+/// Columns are found by name, as in the CSV format: `t` (s), `gx,gy,gz` (rad/s), `ax,ay,az`
+/// (m/s²), optionally `mx,my,mz` (all three or none) and `device` (an integer or string
+/// column; without it the file is one device named after its stem); float32 or float64;
+/// other columns are ignored and not read. A null IMU value is read as NaN (a dropped
+/// packet). Row groups (record batches) without rows are skipped and counted
+/// ([`empty_parts`](Self::empty_parts)).
+pub struct FleetReader {
+    file: PathBuf,
+    source: Source,
+    format: &'static str,
+    stem: String,
+    gaps: ImuGaps,
+    parts: usize,
+    part: usize,
+    rows_read: u64,
+    has_mag: bool,
+    device_type: Option<DataType>,
+    empty_parts: Vec<usize>,
+    /// The rest of a record batch longer than [`BLOCK_ROWS`] (sliced without copying).
+    pending: Option<(RecordBatch, Part)>,
+}
+
+impl FleetReader {
+    /// Opens `path` (Parquet or Arrow IPC file, by [`Format::of_path`]) and checks its schema.
+    pub fn open(path: impl AsRef<Path>, gaps: ImuGaps) -> Result<Self, ColumnarError> {
+        let path = path.as_ref();
+        let file = std::fs::File::open(path).map_err(|source| ColumnarError::Io {
+            file: path.to_owned(),
+            source,
+        })?;
+        let format = Format::of_path(path);
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let (source, schema, parts, name) = if format == Some(Format::Arrow) {
+            let reader =
+                arrow::ipc::reader::FileReader::try_new(std::io::BufReader::new(file), None)
+                    .map_err(|e| format_error(path, "Arrow IPC", None, e))?;
+            let schema = reader.schema();
+            let parts = reader.num_batches();
+            (Source::Ipc { reader }, schema, parts, "Arrow IPC")
+        } else {
+            let meta = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())
+                .map_err(|e| format_error(path, "Parquet", None, e))?;
+            let schema = meta.schema().clone();
+            let parts = meta.metadata().num_row_groups();
+            let source = Source::Parquet {
+                file,
+                meta,
+                projection: Vec::new(),
+                current: None,
+            };
+            (source, schema, parts, "Parquet")
+        };
+        let (projection, has_mag, device_type) = check_schema(path, &schema)?;
+        let mut reader = Self {
+            file: path.to_owned(),
+            source,
+            format: name,
+            stem,
+            gaps,
+            parts,
+            part: 0,
+            rows_read: 0,
+            has_mag,
+            device_type,
+            empty_parts: Vec::new(),
+            pending: None,
+        };
+        if let Source::Parquet { projection: p, .. } = &mut reader.source {
+            *p = projection;
+        }
+        Ok(reader)
+    }
+
+    /// True when the file has magnetometer columns.
+    pub fn has_mag(&self) -> bool {
+        self.has_mag
+    }
+
+    /// The type of the file's device column, `None` without one.
+    pub fn device_type(&self) -> Option<&DataType> {
+        self.device_type.as_ref()
+    }
+
+    /// Row groups (record batches) that had no rows, skipped.
+    pub fn empty_parts(&self) -> &[usize] {
+        &self.empty_parts
+    }
+
+    /// Rows read so far.
+    pub fn rows_read(&self) -> u64 {
+        self.rows_read
+    }
+
+    /// The next block (at most [`BLOCK_ROWS`] rows, never empty), `None` at the end.
+    pub fn next_chunk(
+        &mut self,
+        devices: &mut Devices,
+    ) -> Result<Option<FleetChunk>, ColumnarError> {
+        loop {
+            let next = match self.pending.take() {
+                Some(p) => Some(p),
+                None => self.next_batch()?,
+            };
+            let Some((mut batch, part)) = next else {
+                return Ok(None);
+            };
+            if batch.num_rows() == 0 {
+                continue;
+            }
+            if batch.num_rows() > BLOCK_ROWS {
+                let rest = batch.slice(BLOCK_ROWS, batch.num_rows() - BLOCK_ROWS);
+                self.pending = Some((rest, part));
+                batch = batch.slice(0, BLOCK_ROWS);
+            }
+            let first_row = self.rows_read;
+            self.rows_read += batch.num_rows() as u64;
+            return self.convert(&batch, part, first_row, devices).map(Some);
+        }
+    }
+
+    fn next_batch(&mut self) -> Result<Option<(RecordBatch, Part)>, ColumnarError> {
+        let path = self.file.as_path();
+        match &mut self.source {
+            Source::Ipc { reader } => loop {
+                if self.part >= self.parts {
+                    return Ok(None);
+                }
+                let part = Part::RecordBatch(self.part);
+                self.part += 1;
+                match reader.next() {
+                    None => return Ok(None),
+                    Some(Err(e)) => return Err(format_error(path, "Arrow IPC", Some(part), e)),
+                    Some(Ok(b)) if b.num_rows() == 0 => {
+                        self.empty_parts.push(self.part - 1);
+                    }
+                    Some(Ok(b)) => return Ok(Some((b, part))),
+                }
+            },
+            Source::Parquet {
+                file,
+                meta,
+                projection,
+                current,
+            } => loop {
+                if let Some(reader) = current {
+                    // `self.part` is one past the row group being read.
+                    let part = Part::RowGroup(self.part - 1);
+                    match reader.next() {
+                        Some(Ok(b)) => return Ok(Some((b, part))),
+                        Some(Err(e)) => return Err(format_error(path, "Parquet", Some(part), e)),
+                        None => *current = None,
+                    }
+                }
+                if self.part >= self.parts {
+                    return Ok(None);
+                }
+                let g = self.part;
+                self.part += 1;
+                if meta.metadata().row_group(g).num_rows() == 0 {
+                    self.empty_parts.push(g);
+                    continue;
+                }
+                let io = |source| ColumnarError::Io {
+                    file: path.to_owned(),
+                    source,
+                };
+                let mask = ProjectionMask::roots(meta.parquet_schema(), projection.iter().copied());
+                let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(
+                    file.try_clone().map_err(io)?,
+                    meta.clone(),
+                )
+                .with_row_groups(vec![g])
+                .with_projection(mask)
+                .with_batch_size(BLOCK_ROWS)
+                .build()
+                .map_err(|e| format_error(path, "Parquet", Some(Part::RowGroup(g)), e))?;
+                *current = Some(reader);
+            },
+        }
+    }
+
+    fn convert(
+        &self,
+        batch: &RecordBatch,
+        part: Part,
+        first_row: u64,
+        devices: &mut Devices,
+    ) -> Result<FleetChunk, ColumnarError> {
+        let n = batch.num_rows();
+        let bad = |row: usize, column: &str, problem: String| ColumnarError::BadValue {
+            file: self.file.clone(),
+            part,
+            row: first_row + row as u64,
+            column: column.to_string(),
+            problem,
+        };
+        let column = |name: &str| -> Result<Vec<f64>, ColumnarError> {
+            let col = batch
+                .column_by_name(name)
+                .ok_or_else(|| ColumnarError::MissingColumn {
+                    file: self.file.clone(),
+                    column: REQUIRED
+                        .iter()
+                        .chain(&MAG)
+                        .find(|&&c| c == name)
+                        .copied()
+                        .unwrap_or("t"),
+                })?;
+            float_values(col).ok_or_else(|| type_error(&self.file, name, col.data_type()))
+        };
+        let t = column("t")?;
+        if let Some(r) = t.iter().position(|v| v.is_nan()) {
+            let null = batch.column_by_name("t").is_some_and(|c| c.is_null(r));
+            let what = if null { "null" } else { "NaN" };
+            return Err(bad(r, "t", format!("time is {what}")));
+        }
+        let mut imu = Vec::with_capacity(9);
+        let names: Vec<&str> = REQUIRED[1..]
+            .iter()
+            .chain(if self.has_mag { &MAG[..] } else { &[] })
+            .copied()
+            .collect();
+        for name in &names {
+            let values = column(name)?;
+            if self.gaps == ImuGaps::Refuse
+                && let Some(r) = values.iter().position(|v| !v.is_finite())
+            {
+                return Err(bad(
+                    r,
+                    name,
+                    format!(
+                        "IMU value {} is not finite (null or NaN: a dropped packet)",
+                        values[r]
+                    ),
+                ));
+            }
+            imu.push(values);
+        }
+        let vec3 = |k: usize| -> Vec<Vec3<f64>> {
+            (0..n)
+                .map(|r| Vec3::new(imu[k][r], imu[k + 1][r], imu[k + 2][r]))
+                .collect()
+        };
+        let block_mag = self.has_mag.then(|| vec3(6));
+        let device_column = batch.column_by_name(DEVICE).cloned();
+        let device = match &device_column {
+            None => vec![devices.named(&self.stem); n],
+            Some(col) => device_ids(col, devices).map_err(|r| match r {
+                Some(r) => bad(r, DEVICE, "device is null".into()),
+                None => type_error(&self.file, DEVICE, col.data_type()),
+            })?,
+        };
+        let block = FleetBlock {
+            device,
+            t,
+            gyr: vec3(0),
+            acc: vec3(3),
+            mag: block_mag,
+        };
+        let missing_imu = block.rows_with_missing_imu(0..n);
+        Ok(FleetChunk {
+            block,
+            device_column,
+            part,
+            first_row,
+            missing_imu,
+        })
+    }
+
+    /// The file's format name for messages (`Parquet`, `Arrow IPC`).
+    pub fn format_name(&self) -> &'static str {
+        self.format
+    }
+}
+
+/// Values of a float32 or float64 column as `f64`, nulls as NaN; `None` for another type.
+fn float_values(col: &ArrayRef) -> Option<Vec<f64>> {
+    let mut values: Vec<f64> = match col.data_type() {
+        DataType::Float64 => col.as_primitive::<Float64Type>().values().to_vec(),
+        DataType::Float32 => col
+            .as_primitive::<Float32Type>()
+            .values()
+            .iter()
+            .map(|&v| f64::from(v))
+            .collect(),
+        _ => return None,
+    };
+    if let Some(nulls) = col.nulls() {
+        for r in (0..values.len()).filter(|&r| nulls.is_null(r)) {
+            values[r] = f64::NAN;
+        }
+    }
+    Some(values)
+}
+
+/// Device numbers of a device column: `Err(Some(row))` for a null, `Err(None)` for a type
+/// that is neither integer nor string.
+fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<usize>> {
+    if let Some(r) = (0..col.len()).find(|&r| col.is_null(r)) {
+        return Err(Some(r));
+    }
+    let mut ids = Vec::with_capacity(col.len());
+    // Rows of one device usually come in runs: look up only when the key changes.
+    let mut last: Option<(DeviceKey, u32)> = None;
+    let mut push = |key: DeviceKey, ids: &mut Vec<u32>| {
+        let d = match &last {
+            Some((k, d)) if *k == key => *d,
+            _ => {
+                let d = devices.id(key.clone());
+                last = Some((key, d));
+                d
+            }
+        };
+        ids.push(d);
+    };
+    let ty = col.data_type();
+    if ty.is_integer() && *ty != DataType::UInt64 {
+        let ints = arrow::compute::cast(col, &DataType::Int64).map_err(|_| None)?;
+        for &v in ints.as_primitive::<Int64Type>().values() {
+            push(DeviceKey::Int(v), &mut ids);
+        }
+    } else if ty.is_integer()
+        || matches!(
+            ty,
+            DataType::Utf8 | DataType::LargeUtf8 | DataType::Utf8View | DataType::Dictionary(..)
+        )
+    {
+        let text = arrow::compute::cast(col, &DataType::Utf8).map_err(|_| None)?;
+        if let Some(r) = (0..text.len()).find(|&r| text.is_null(r)) {
+            return Err(Some(r));
+        }
+        for v in text.as_string::<i32>().iter() {
+            push(DeviceKey::Text(v.unwrap_or_default().to_string()), &mut ids);
+        }
+    } else {
+        return Err(None);
+    }
+    Ok(ids)
+}
+
+fn type_error(file: &Path, column: &str, found: &DataType) -> ColumnarError {
+    ColumnarError::ColumnType {
+        file: file.to_owned(),
+        column: column.to_string(),
+        found: found.to_string(),
+        expected: if column == DEVICE {
+            "an integer or string"
+        } else {
+            "float32 or float64"
+        },
+    }
+}
+
+fn format_error(
+    file: &Path,
+    format: &'static str,
+    part: Option<Part>,
+    e: impl std::fmt::Display,
+) -> ColumnarError {
+    ColumnarError::Format {
+        file: file.to_owned(),
+        format,
+        part: part.map_or_else(String::new, |p| format!("{p}: ")),
+        message: e.to_string(),
+    }
+}
+
+/// Checks names and types; returns the indices of the columns to read, whether there is a
+/// magnetometer and the device column's type.
+fn check_schema(
+    file: &Path,
+    schema: &Schema,
+) -> Result<(Vec<usize>, bool, Option<DataType>), ColumnarError> {
+    let fields = schema.fields();
+    for (i, f) in fields.iter().enumerate() {
+        if fields[..i].iter().any(|g| g.name() == f.name()) {
+            return Err(ColumnarError::DuplicateColumn {
+                file: file.to_owned(),
+                column: f.name().clone(),
+            });
+        }
+    }
+    let find = |name: &str| fields.iter().position(|f| f.name() == name);
+    let mut projection = Vec::new();
+    let mut float = |name: &'static str, i: usize| -> Result<(), ColumnarError> {
+        let ty = fields[i].data_type();
+        if !matches!(ty, DataType::Float32 | DataType::Float64) {
+            return Err(type_error(file, name, ty));
+        }
+        projection.push(i);
+        Ok(())
+    };
+    for name in REQUIRED {
+        let i = find(name).ok_or_else(|| ColumnarError::MissingColumn {
+            file: file.to_owned(),
+            column: name,
+        })?;
+        float(name, i)?;
+    }
+    let mag: Vec<Option<usize>> = MAG.iter().map(|n| find(n)).collect();
+    let has_mag = mag.iter().any(Option::is_some);
+    if has_mag {
+        for (name, i) in MAG.into_iter().zip(&mag) {
+            let i = i.ok_or_else(|| ColumnarError::MissingColumn {
+                file: file.to_owned(),
+                column: name,
+            })?;
+            float(name, i)?;
+        }
+    }
+    let device_type = match find(DEVICE) {
+        Some(i) => {
+            let ty = fields[i].data_type().clone();
+            let text = matches!(
+                ty,
+                DataType::Utf8
+                    | DataType::LargeUtf8
+                    | DataType::Utf8View
+                    | DataType::Dictionary(..)
+            );
+            if !ty.is_integer() && !text {
+                return Err(type_error(file, DEVICE, &ty));
+            }
+            projection.push(i);
+            Some(ty)
+        }
+        None => None,
+    };
+    projection.sort_unstable();
+    Ok((projection, has_mag, device_type))
+}

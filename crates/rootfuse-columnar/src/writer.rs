@@ -1,0 +1,213 @@
+//! [`EstimateWriter`]: estimates written block by block as Parquet, Arrow IPC or CSV.
+
+use crate::error::ColumnarError;
+use crate::reader::{Devices, FleetChunk};
+use crate::{DEVICE, Format};
+use arrow::array::{ArrayRef, BooleanArray, Float64Array, RecordBatch, UInt8Array};
+use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
+use parquet::arrow::ArrowWriter;
+use parquet::basic::Compression;
+use parquet::file::properties::WriterProperties;
+use rootfuse_batch::{BlockEstimates, Columns};
+use rootfuse_io::{AtomicFile, CsvEstimateWriter};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Rows per Parquet row group written: bounds the writer's buffer (a row group is encoded in
+/// memory before it is written) to a few tens of MB.
+pub const ROW_GROUP_ROWS: usize = 1 << 18;
+
+/// The estimate columns after `t` for `columns` (`qw..qz`, then `bx..bz`, `p_xx..p_zz`,
+/// `flags` as asked), as [`rootfuse_io::write_estimates`] names them.
+pub fn estimate_names(columns: Columns, covariance: bool) -> Vec<&'static str> {
+    let mut names = vec!["t", "qw", "qx", "qy", "qz"];
+    if columns.bias {
+        names.extend(["bx", "by", "bz"]);
+    }
+    if columns.covariance && covariance {
+        names.extend(["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"]);
+    }
+    if columns.flags {
+        names.push("flags");
+    }
+    names
+}
+
+enum Sink {
+    Parquet(ArrowWriter<AtomicFile>),
+    Arrow(arrow::ipc::writer::FileWriter<AtomicFile>),
+    Csv(CsvEstimateWriter),
+}
+
+/// Estimate rows written as they come, to a temporary file renamed into place by
+/// [`finish`](Self::finish) (dropped unfinished, nothing is left behind).
+///
+/// Columns: `device` (when the input had one: Parquet and Arrow keep its type, CSV writes it
+/// as text), then [`estimate_names`] (float64; `flags` uint8 in Parquet and Arrow).
+pub struct EstimateWriter {
+    sink: Sink,
+    schema: SchemaRef,
+    path: std::path::PathBuf,
+}
+
+impl EstimateWriter {
+    /// Creates `path` in `format`; `device` is the input's device column type (`None`: no
+    /// device column), `names` from [`estimate_names`].
+    pub fn create(
+        path: impl AsRef<Path>,
+        format: Format,
+        device: Option<&DataType>,
+        names: &[&str],
+    ) -> Result<Self, ColumnarError> {
+        let path = path.as_ref();
+        let mut fields: Vec<Field> = Vec::new();
+        if let Some(ty) = device {
+            fields.push(Field::new(DEVICE, ty.clone(), false));
+        }
+        for &name in names {
+            let ty = if name == "flags" {
+                DataType::UInt8
+            } else {
+                DataType::Float64
+            };
+            fields.push(Field::new(name, ty, false));
+        }
+        let schema = Arc::new(Schema::new(fields));
+        let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
+            file: path.to_owned(),
+            message: e.to_string(),
+        };
+        let sink = match format {
+            Format::Csv => Sink::Csv(CsvEstimateWriter::create(
+                path,
+                device.map(|_| DEVICE),
+                names,
+            )?),
+            Format::Parquet => {
+                let props = WriterProperties::builder()
+                    .set_compression(Compression::SNAPPY)
+                    .set_max_row_group_row_count(Some(ROW_GROUP_ROWS))
+                    .build();
+                let file = AtomicFile::create(path)?;
+                Sink::Parquet(
+                    ArrowWriter::try_new(file, schema.clone(), Some(props))
+                        .map_err(|e| write_error(&e))?,
+                )
+            }
+            Format::Arrow => {
+                let file = AtomicFile::create(path)?;
+                Sink::Arrow(
+                    arrow::ipc::writer::FileWriter::try_new(file, &schema)
+                        .map_err(|e| write_error(&e))?,
+                )
+            }
+        };
+        Ok(Self {
+            sink,
+            schema,
+            path: path.to_owned(),
+        })
+    }
+
+    /// Writes the estimates of rows `rows` of one block (rows not
+    /// [`kept`](BlockEstimates::kept) are left out).
+    pub fn write(
+        &mut self,
+        chunk: &FleetChunk,
+        devices: &Devices,
+        est: &BlockEstimates,
+        rows: std::ops::Range<usize>,
+    ) -> Result<(), ColumnarError> {
+        let block = &chunk.block;
+        let names: Vec<&str> = self
+            .schema
+            .fields()
+            .iter()
+            .map(|f| f.name().as_str())
+            .filter(|n| *n != DEVICE)
+            .collect();
+        let kept: Vec<usize> = rows.clone().filter(|&r| est.kept[r]).collect();
+        let value = |name: &str, r: usize| -> f64 {
+            let q = est.quat[r];
+            let cov = |k: usize| est.covariance.get(r).map_or(f64::NAN, |p| p[k]);
+            let bias = est.bias.get(r).copied().unwrap_or_default();
+            match name {
+                "t" => block.t[r],
+                "qw" => q.w,
+                "qx" => q.x,
+                "qy" => q.y,
+                "qz" => q.z,
+                "bx" => bias.x,
+                "by" => bias.y,
+                "bz" => bias.z,
+                "p_xx" => cov(0),
+                "p_xy" => cov(1),
+                "p_xz" => cov(2),
+                "p_yy" => cov(3),
+                "p_yz" => cov(4),
+                "p_zz" => cov(5),
+                _ => f64::from(est.flags.get(r).copied().unwrap_or(0)),
+            }
+        };
+        let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
+            file: self.path.clone(),
+            message: e.to_string(),
+        };
+        if let Sink::Csv(w) = &mut self.sink {
+            let mut row = Vec::with_capacity(names.len());
+            for &r in &kept {
+                row.clear();
+                row.extend(names.iter().map(|n| value(n, r)));
+                w.write_row(devices.label(block.device[r]), &row)?;
+            }
+            return Ok(());
+        }
+        let mut arrays: Vec<ArrayRef> = Vec::new();
+        if self.schema.field_with_name(DEVICE).is_ok() {
+            let col = chunk
+                .device_column
+                .as_ref()
+                .ok_or_else(|| ColumnarError::Write {
+                    file: self.path.clone(),
+                    message: "a block without the device column".into(),
+                })?;
+            let col = col.slice(rows.start, rows.len());
+            let mask = BooleanArray::from(est.kept[rows].to_vec());
+            arrays.push(arrow::compute::filter(&col, &mask).map_err(|e| write_error(&e))?);
+        }
+        for name in &names {
+            if *name == "flags" {
+                let flags = UInt8Array::from_iter_values(kept.iter().map(|&r| est.flags[r]));
+                arrays.push(Arc::new(flags));
+            } else {
+                let values = Float64Array::from_iter_values(kept.iter().map(|&r| value(name, r)));
+                arrays.push(Arc::new(values));
+            }
+        }
+        let batch =
+            RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| write_error(&e))?;
+        match &mut self.sink {
+            Sink::Parquet(w) => w.write(&batch).map_err(|e| write_error(&e)),
+            Sink::Arrow(w) => w.write(&batch).map_err(|e| write_error(&e)),
+            Sink::Csv(_) => Ok(()),
+        }
+    }
+
+    /// Completes the file and renames it into place.
+    pub fn finish(self) -> Result<(), ColumnarError> {
+        let path = self.path;
+        let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
+            file: path.clone(),
+            message: e.to_string(),
+        };
+        match self.sink {
+            Sink::Csv(w) => w.finish()?,
+            Sink::Parquet(w) => w.into_inner().map_err(|e| write_error(&e))?.finish()?,
+            Sink::Arrow(mut w) => {
+                w.finish().map_err(|e| write_error(&e))?;
+                w.into_inner().map_err(|e| write_error(&e))?.finish()?;
+            }
+        }
+        Ok(())
+    }
+}

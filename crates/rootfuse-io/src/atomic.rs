@@ -1,0 +1,176 @@
+//! Files that appear complete or not at all: written under a temporary name beside the
+//! target, then renamed into place.
+
+use crate::csv_format::{WriteError, check_name, push_all, temporary_path};
+use std::borrow::ToOwned;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::string::String;
+use std::vec::Vec;
+
+/// A file being written to [`temporary_path`] and renamed to its final path by
+/// [`finish`](Self::finish) (after its data reached the disk). Dropped unfinished (an error,
+/// a panic), it removes the temporary file: the final path keeps its previous content or
+/// stays absent.
+///
+/// ```
+/// use std::io::Write;
+/// let dir = std::env::temp_dir().join(format!("rootfuse-atomic-doc-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir).unwrap();
+/// let path = dir.join("a.txt");
+/// let mut f = rootfuse_io::AtomicFile::create(&path).unwrap();
+/// f.write_all(b"hello").unwrap();
+/// assert!(!path.exists()); // not before `finish`
+/// f.finish().unwrap();
+/// assert_eq!(std::fs::read(&path).unwrap(), b"hello");
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+#[derive(Debug)]
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    writer: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+impl AtomicFile {
+    /// Creates the temporary file of `path` (this process's [`temporary_path`]).
+    pub fn create(path: impl AsRef<Path>) -> Result<Self, WriteError> {
+        let path = path.as_ref().to_owned();
+        let tmp = temporary_path(&path, std::process::id());
+        let file = std::fs::File::create(&tmp).map_err(|source| WriteError::Io {
+            file: path.clone(),
+            source,
+        })?;
+        Ok(Self {
+            path,
+            tmp,
+            writer: Some(std::io::BufWriter::with_capacity(1 << 16, file)),
+        })
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flushes, syncs the data to disk and renames the file into place.
+    pub fn finish(mut self) -> Result<(), WriteError> {
+        let result = (|| -> Result<(), std::io::Error> {
+            let Some(w) = self.writer.take() else {
+                return Ok(());
+            };
+            let file = w.into_inner().map_err(|e| e.into_error())?;
+            // Data on disk before the rename makes it visible: no empty file after a crash.
+            file.sync_all()?;
+            std::fs::rename(&self.tmp, &self.path)
+        })();
+        result.map_err(|source| {
+            let _ = std::fs::remove_file(&self.tmp);
+            WriteError::Io {
+                file: self.path.clone(),
+                source,
+            }
+        })
+    }
+
+    fn writer(&mut self) -> std::io::Result<&mut std::io::BufWriter<std::fs::File>> {
+        self.writer
+            .as_mut()
+            .ok_or_else(|| std::io::Error::other("file already finished"))
+    }
+}
+
+impl std::io::Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.writer()?.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.writer()?.flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.writer.take().is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Estimates written as CSV row by row (streaming), atomically: the format of
+/// [`write_estimates`](crate::write_estimates) (`t,qw,qx,qy,qz`, then extra columns, numbers in
+/// shortest round-trip form), optionally led by a text column such as `device`.
+#[derive(Debug)]
+pub struct CsvEstimateWriter {
+    file: AtomicFile,
+    row: String,
+    columns: usize,
+    label: bool,
+}
+
+impl CsvEstimateWriter {
+    /// Creates the file and writes the header: `label` (if any) then `names` (the numeric
+    /// columns, in the order rows give them).
+    pub fn create(
+        path: impl AsRef<Path>,
+        label: Option<&str>,
+        names: &[&str],
+    ) -> Result<Self, WriteError> {
+        let path = path.as_ref();
+        let mut taken: Vec<&str> = Vec::new();
+        for name in label.iter().chain(names) {
+            check_name(path, name, &taken)?;
+            taken.push(name);
+        }
+        let mut file = AtomicFile::create(path)?;
+        let header = taken.join(",") + "\n";
+        file.write_all(header.as_bytes())
+            .map_err(|source| WriteError::Io {
+                file: path.to_owned(),
+                source,
+            })?;
+        Ok(Self {
+            file,
+            row: String::with_capacity(256),
+            columns: names.len(),
+            label: label.is_some(),
+        })
+    }
+
+    /// Writes one row: the label (quoted if it needs to be; ignored without a label column)
+    /// and one value per numeric column.
+    pub fn write_row(&mut self, label: &str, values: &[f64]) -> Result<(), WriteError> {
+        if values.len() != self.columns {
+            return Err(WriteError::Length {
+                file: self.file.path().to_owned(),
+                column: "row".into(),
+                expected: self.columns,
+                found: values.len(),
+            });
+        }
+        self.row.clear();
+        if self.label {
+            self.row.push(',');
+            if label.contains([',', '"', '\n', '\r']) {
+                self.row.push('"');
+                self.row.push_str(&label.replace('"', "\"\""));
+                self.row.push('"');
+            } else {
+                self.row.push_str(label);
+            }
+        }
+        push_all(&mut self.row, values);
+        self.row.push('\n');
+        // Every field was written with a leading comma.
+        let bytes = &self.row.as_bytes()[1..];
+        self.file.write_all(bytes).map_err(|source| WriteError::Io {
+            file: self.file.path().to_owned(),
+            source,
+        })
+    }
+
+    /// Renames the file into place (see [`AtomicFile::finish`]).
+    pub fn finish(self) -> Result<(), WriteError> {
+        self.file.finish()
+    }
+}
