@@ -62,7 +62,7 @@
 //! | `mahony` | 184 | 312 | 180 |
 //! | `madgwick` | 172 | 288 | 168 |
 //! | `ekf` | 384 | 712 | 380 |
-//! | `sqrt-eskf` | 644 | 1224 | 640 |
+//! | `sqrt-eskf` | 644 | 1232 | 640 |
 //! | `complementary-reconstruction` | 328 | 600 | 322 |
 //! | `heading-pipeline` | 856 | 1512 | 828 |
 //! | `lsq-fusion` | 1260 | 2232 | 1228 |
