@@ -10,11 +10,28 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rootfuse"))
 }
 
-fn temp_dir(name: &str) -> PathBuf {
+/// A scratch directory of one test, removed when the test ends (passed or failed): recordings
+/// and estimates of whole BROAD trials must not pile up in the system's temp folder.
+struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(name: &str) -> Scratch {
     let dir = std::env::temp_dir().join(format!("rootfuse-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    Scratch(dir)
 }
 
 fn run(args: &[&str]) -> Output {
@@ -453,13 +470,14 @@ fn run_refuses_to_overwrite_an_input() {
     let dir = temp_dir("overwrite");
     let input = simulated(&dir, "x.csv", 1);
     let before = std::fs::read(&input).unwrap();
-    for out in [dir.clone(), dir.join(".")] {
+    for out in [dir.to_path_buf(), dir.join(".")] {
         let (code, _, stderr) =
             run_paths(&[&"run", &input, &"--filter", &"mahony", &"--out", &out]);
         assert_eq!(code, Some(2), "{stderr}");
         assert!(stderr.contains("would overwrite this input"), "{stderr}");
     }
     // The folder as input too.
+    let dir: &Path = &dir;
     let (code, _, stderr) = run_paths(&[&"run", &dir, &"--filter", &"mahony", &"--out", &dir]);
     assert_eq!(code, Some(2), "{stderr}");
     assert_eq!(std::fs::read(&input).unwrap(), before);
