@@ -9,6 +9,7 @@
 //! skips, visible in the returned flags.
 
 mod arrays;
+mod calibration;
 mod eval;
 mod filter;
 mod lsq;
@@ -108,6 +109,7 @@ fn _rootfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(eval::write_recording, m)?)?;
     m.add_function(wrap_pyfunction!(eval::write_estimates, m)?)?;
     m.add_function(wrap_pyfunction!(eval::read_estimates, m)?)?;
+    m.add_function(wrap_pyfunction!(calibration::fit_ellipsoid_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(build_info, m)?)?;
     Ok(())
 }

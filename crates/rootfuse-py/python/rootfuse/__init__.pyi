@@ -171,6 +171,10 @@ class Rls:
 
 def rls_forms() -> List[str]: ...
 
+def fit_ellipsoid_calibration(samples: FloatArray, *, norm: Optional[float] = None) -> Dict[str, Any]:
+    """y_cal = S·(y_raw − h) from raw (N, 3) readings: ``matrix``, ``offset``, ``norm``,
+    ``model`` (what the data determined), ``refused``, quality figures; ValueError on refusal."""
+
 def lstsq(
     h: FloatArray,
     z: FloatArray,
