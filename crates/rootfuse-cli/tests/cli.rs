@@ -6,32 +6,11 @@ use rootfuse_io::{read_csv, read_estimates, write_recording};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rootfuse"))
-}
-
-/// A scratch directory of one test, removed when the test ends (passed or failed): recordings
-/// and estimates of whole BROAD trials must not pile up in the system's temp folder.
-struct Scratch(PathBuf);
-
-impl std::ops::Deref for Scratch {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::{Scratch, bin};
 
 fn temp_dir(name: &str) -> Scratch {
-    let dir = std::env::temp_dir().join(format!("rootfuse-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    Scratch(dir)
+    common::temp_dir("cli", name)
 }
 
 fn run(args: &[&str]) -> Output {

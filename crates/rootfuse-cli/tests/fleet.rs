@@ -9,35 +9,13 @@ use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_batch::{Precision, run_recordings};
 use rootfuse_eval::sim::scenario;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rootfuse"))
-}
-
-/// A scratch directory of one test, removed when the test ends (passed or failed): recordings
-/// and estimates of whole BROAD trials must not pile up in the system's temp folder.
-struct Scratch(PathBuf);
-
-impl std::ops::Deref for Scratch {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::{Scratch, bin};
 
 fn temp_dir(name: &str) -> Scratch {
-    let dir = std::env::temp_dir().join(format!("rootfuse-fleet-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    Scratch(dir)
+    common::temp_dir("fleet", name)
 }
 
 fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String) {
