@@ -363,6 +363,14 @@ impl<T: Lane> Coefficients<T> {
     }
 }
 
+/// The error-state correction `δx = [δθ, δb]` of one sample's scalar updates, summed, and
+/// the lanes that accepted at least one of them (`δx` is zero in the others): injected once
+/// per sample.
+struct Correction<T: Lane> {
+    dx: [T; 6],
+    accepted: T::Mask,
+}
+
 /// The coefficients that depend on the time step only, per lane, for the `dt` they were
 /// computed for: with a constant `dt` (the usual case) they are computed once instead of
 /// every sample (`exp`, `sqrt` and divisions). Bit for bit what the formulas give, so
@@ -599,9 +607,10 @@ impl<T: Lane> SqrtEskf<T> {
     }
 
     /// Injects an error-state correction into `c` and `b̂` (then the error is zero again).
-    /// Lanes that did not accept the update keep `c` and `b̂` bit for bit (no renormalisation),
-    /// so whether the update ran at all — it is skipped when no lane needs it — is invisible.
-    fn inject(&mut self, dx: [T; 6], accepted: T::Mask) {
+    /// Lanes that accepted no update keep `c` and `b̂` bit for bit (no renormalisation),
+    /// so whether an update ran at all — some are skipped when no lane needs them — is invisible.
+    fn inject(&mut self, correction: Correction<T>) {
+        let Correction { dx, accepted } = correction;
         let st = &mut self.state;
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
         let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).normalize();
@@ -786,10 +795,19 @@ impl<T: Lane> SqrtEskf<T> {
     /// deviations the next time update re-inflates the bias covariance by `init_bias_std`,
     /// and the lag-aware inclination measurement (`H` contains `τ·R̄`) then learns the new
     /// bias within seconds rather than at the random-walk rate. Not during start-up.
-    fn detect_bias_step(&mut self, s: &Screened<T>, starting: T::Mask) {
-        let (eps, ok) = self.inclination_innovation();
+    fn detect_bias_step(
+        &mut self,
+        s: &Screened<T>,
+        starting: T::Mask,
+        (eps, ok): ([T; 2], T::Mask),
+    ) {
         let c = &self.coef;
         let st = &mut self.state;
+        // Disabled in every lane (the default): the running means are read nowhere else.
+        if !c.bias_step_threshold.simd_gt(T::zero()).any() {
+            st.bias_step = <T::Mask as Mask>::splat(false);
+            return;
+        }
         let use_it = s.acc_ok & ok & !starting;
         let k = lowpass_gain(s.dt, c.bias_step_window);
         let mx = st.innovation_mean_x + (eps[0] - st.innovation_mean_x) * k;
@@ -813,70 +831,70 @@ impl<T: Lane> SqrtEskf<T> {
     /// Inclination: two sequential scalar updates on the horizontal error components.
     /// The low-passed vector measures δθ + τ·R̄·δb with R̄ = R(c)·LP(R(q_strapdown)): the
     /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
-    fn correct_inclination(&mut self, s: &Screened<T>, tau: T, starting: T::Mask) {
-        let zero = T::zero();
-        let r_acc = self.per_dt.r_acc;
-        let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
-        let mut any_accept = <T::Mask as Mask>::splat(false);
-        let mut applied = <T::Mask as Mask>::splat(false);
-        for (accepted, apply) in [
-            self.inclination_axis::<0>(s, tau, r_acc, gate),
-            self.inclination_axis::<1>(s, tau, r_acc, gate),
-        ] {
-            any_accept |= accepted;
-            applied |= apply;
-        }
-        let gated = applied & !any_accept;
-        self.rejections.gate(gated);
-        self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
-    }
-
-    /// One horizontal component `AXIS` of the inclination update (the second sees the first's
-    /// correction). Returns (lanes accepted, lanes with a usable measurement).
-    fn inclination_axis<const AXIS: usize>(
+    /// The second component's innovation is the first's residual to first order
+    /// (`ε_y − δθ_y` of the first correction): the measurement is linearised once per sample,
+    /// and the correction is injected once ([`Correction`]), which is what keeps the
+    /// per-sample chain of dependent square roots and rotations short.
+    fn correct_inclination(
         &mut self,
         s: &Screened<T>,
         tau: T,
-        r_acc: T,
-        gate: T,
-    ) -> (T::Mask, T::Mask) {
+        starting: T::Mask,
+        (eps, v_ok): ([T; 2], T::Mask),
+    ) -> Correction<T> {
         let zero = T::zero();
-        let one = T::one();
+        let r_acc = self.per_dt.r_acc;
+        let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
         let rc = self.state.correction.to_rotation_matrix();
         let rbar = rc * self.state.rot_lp;
-        let (eps, v_ok) = self.inclination_innovation();
-        let mut h = [zero; 6];
-        h[AXIS] = one;
-        for k in 0..3 {
-            h[3 + k] = tau * rbar.m[AXIS][k];
-        }
         let apply = s.acc_ok & v_ok;
-        let (dx, accepted) = self.scalar_update::<AXIS>(h, eps[AXIS], r_acc, gate, apply);
-        self.inject(dx, accepted);
-        (accepted, apply)
+        let row = |axis: usize| {
+            let mut h = [zero; 6];
+            h[axis] = T::one();
+            for k in 0..3 {
+                h[3 + k] = tau * rbar.m[axis][k];
+            }
+            h
+        };
+        let (dx0, accepted0) = self.scalar_update::<0>(row(0), eps[0], r_acc, gate, apply);
+        let (dx1, accepted1) = self.scalar_update::<1>(row(1), eps[1] - dx0[1], r_acc, gate, apply);
+        let accepted = accepted0 | accepted1;
+        let gated = apply & !accepted;
+        self.rejections.gate(gated);
+        self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
+        Correction {
+            dx: core::array::from_fn(|i| dx0[i] + dx1[i]),
+            accepted,
+        }
     }
 
-    /// Bias at rest: the low-passed gyro measures `b` directly.
-    fn correct_bias_at_rest(&mut self, rest: T::Mask) {
+    /// Bias at rest: the low-passed gyro measures `b` directly, one scalar update per
+    /// component against the bias as corrected so far (`b̂ + δb` of `correction`: the
+    /// measurement is linear, so this is exact), added to `correction`.
+    fn correct_bias_at_rest(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
         // Every lane not at rest discards these updates: skipping them when no lane is at
         // rest changes no result.
         if !rest.any() {
             return;
         }
-        let r_rest = self.per_dt.r_rest;
-        self.rest_axis::<3>(r_rest, rest);
-        self.rest_axis::<4>(r_rest, rest);
-        self.rest_axis::<5>(r_rest, rest);
+        self.rest_axis::<3>(rest, correction);
+        self.rest_axis::<4>(rest, correction);
+        self.rest_axis::<5>(rest, correction);
     }
 
     /// The at-rest measurement of bias component `STATE − 3` (`H = e_STATE`).
-    fn rest_axis<const STATE: usize>(&mut self, r_rest: T, rest: T::Mask) {
+    fn rest_axis<const STATE: usize>(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
         let mut h = [T::zero(); 6];
         h[STATE] = T::one();
         let k = STATE - 3;
-        let z = self.state.rest_gyr_lp.to_array()[k] - self.state.bias.to_array()[k];
+        let z = self.state.rest_gyr_lp.to_array()[k]
+            - (self.state.bias.to_array()[k] + correction.dx[STATE]);
+        let r_rest = self.per_dt.r_rest;
         let (dx, accepted) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
-        self.inject(dx, accepted);
+        for (total, d) in correction.dx.iter_mut().zip(dx) {
+            *total += d;
+        }
+        correction.accepted |= accepted;
     }
 
     /// Heading offset from the magnetometer (9D): disturbance detection against the learned
@@ -995,9 +1013,11 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
-        self.detect_bias_step(&s, starting);
-        self.correct_inclination(&s, tau, starting);
-        self.correct_bias_at_rest(rest);
+        let innovation = self.inclination_innovation();
+        self.detect_bias_step(&s, starting, innovation);
+        let mut correction = self.correct_inclination(&s, tau, starting, innovation);
+        self.correct_bias_at_rest(rest, &mut correction);
+        self.inject(correction);
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth, fresh);
         }
