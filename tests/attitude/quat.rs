@@ -164,6 +164,25 @@ proptest! {
         }
     }
 
+    /// Below `|v| = 1/4` the exponential is a series: it agrees with `[cos a, sin a·v/a]`
+    /// (std's trigonometry in f64) to a few ulps on both sides of the switch, in f64 and f32.
+    #[test]
+    fn exponential_series_matches_trigonometry(
+        v in vec3(1.0),
+        a in prop::sample::select(vec![1e-9, 1e-4, 0.01, 0.1, 0.2, 0.2499, 0.2501, 0.5, 2.0]),
+    ) {
+        let n = v.norm();
+        prop_assume!(n > 1e-3);
+        let v = v * (a / n);
+        let expected = [a.cos(), v.x * a.sin() / a, v.y * a.sin() / a, v.z * a.sin() / a];
+        let got = Quat::<f64>::exp(v).to_array();
+        let got32 = Quat::<f32>::exp(Vec3::new(v.x as f32, v.y as f32, v.z as f32)).to_array();
+        for k in 0..4 {
+            prop_assert!((got[k] - expected[k]).abs() <= 4.0 * f64::EPSILON, "f64 {k}: {} vs {}", got[k], expected[k]);
+            prop_assert!((got32[k] as f64 - expected[k]).abs() <= 4.0 * f32::EPSILON as f64, "f32 {k}");
+        }
+    }
+
     /// The kernels instantiated with `f32x8` (and `f64x4`) equal 8 (4) scalar runs bit for bit.
     #[test]
     fn lanes_equal_scalar_runs(qs in prop::array::uniform8(unit_quat()), ps in prop::array::uniform8(unit_quat()),
@@ -173,7 +192,7 @@ proptest! {
         let p = Quat::<V>::from_lanes(|i| to_f32(ps[i]));
         let v = Vec3::<V>::from_lanes(|i| Vec3::new(vs[i].x as f32, vs[i].y as f32, vs[i].z as f32));
         let tv = V::splat(t as f32);
-        let lane_quats = [q * p, q.conj(), q.normalize(), Quat::from_rotation_vector(v), Quat::exp(v),
+        let lane_quats = [q * p, q.conj(), q.normalize(), Quat::from_rotation_vector(v), Quat::exp(v), Quat::exp(v * V::splat(0.04)),
             Quat::from_rotation_matrix(&q.to_rotation_matrix()), q.slerp(p, tv), q.nlerp(p, tv), p.align_to(q),
             q.heading_inclination().1];
         let lane_vecs = [q.rotate(v), q.rotate_inverse(v), q.log(), q.to_rotation_vector()];
@@ -181,7 +200,7 @@ proptest! {
         let le = Quat::from_euler_zyx(v.x, v.y, v.z);
         for i in 0..8 {
             let (qi, pi, vi, ti) = (q.lane(i), p.lane(i), v.lane(i), t as f32);
-            let scalar_quats = [qi * pi, qi.conj(), qi.normalize(), Quat::from_rotation_vector(vi), Quat::exp(vi),
+            let scalar_quats = [qi * pi, qi.conj(), qi.normalize(), Quat::from_rotation_vector(vi), Quat::exp(vi), Quat::exp(vi * 0.04),
                 Quat::from_rotation_matrix(&qi.to_rotation_matrix()), qi.slerp(pi, ti), qi.nlerp(pi, ti), pi.align_to(qi),
                 qi.heading_inclination().1];
             for (lq, sq) in lane_quats.iter().zip(scalar_quats) {
