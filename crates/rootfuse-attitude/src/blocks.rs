@@ -101,7 +101,13 @@ pub fn acc_mag_quat<T: Lane>(acc: Vec3<T>, mag: Vec3<T>, min_sin_dip: T) -> (Qua
 /// north. Returns a false mask where the horizontal field is too weak relative to the total
 /// (`|h_xy| < 0.05·|h|`) or the input is not finite.
 pub fn magnetic_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> (T, T::Mask) {
-    let h = q.rotate(mag);
+    field_heading_error(q.rotate(mag))
+}
+
+/// [`magnetic_heading_error`] of a field `h` already in the earth frame: `atan2(h_x, h_y)`
+/// (rad, `[-π, π]`), with the same mask. Rotating `h` about earth-z by `δ` lowers the result
+/// by `δ` (modulo 2π), so a filter that knows `h` in one frame need not rotate it again.
+pub fn field_heading_error<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
     let hxy2 = h.x * h.x + h.y * h.y;
     let ok = hxy2.simd_gt(T::from_f64(0.0025) * h.norm_squared())
         & hxy2.is_finite()

@@ -143,7 +143,7 @@ use super::upper_factor::{add_diagonal_noise, carlson_update};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
-use crate::blocks::{magnetic_heading_error, tilt_from_acc};
+use crate::blocks::{field_heading_error, magnetic_heading_error, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 
@@ -948,8 +948,10 @@ impl<T: Lane> SqrtEskf<T> {
         self.rejections.reject_field(self.state.mag_disturbed);
 
         let st = &mut self.state;
-        let q9 = Quat::from_heading(st.heading_offset) * q6;
-        let (psi, psi_ok) = magnetic_heading_error(q9, s.mag);
+        // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
+        // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
+        let (psi6, psi_ok) = field_heading_error(h);
+        let psi = (psi6 - st.heading_offset).wrap_pi();
         let r_mag = self.per_dt.r_mag;
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
