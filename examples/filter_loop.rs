@@ -1,6 +1,7 @@
 //! The single-channel filter loop a Rust user writes, timed: the reference that
 //! `benches/python/bench_peers.py` compares `rootfuse.Filter.update_batch` with (same file,
-//! same filter and precision, same outputs collected: orientation, bias and flags per sample).
+//! same filter and precision, same outputs collected: orientation, bias, flags and, where the
+//! filter has one, the attitude covariance per sample).
 //!
 //! `cargo run --release --example filter_loop -- FILE.csv FILTER DOF PRECISION REPEATS`
 //! prints `{"ns_per_sample": best of REPEATS, "checksum": ...}` as one JSON line.
@@ -18,6 +19,7 @@ fn run<T: Lane>(spec: &FilterSpec, rec: &rootfuse::io::Recording) -> f64 {
         Vec::with_capacity(3 * n),
         Vec::with_capacity(n),
     );
+    let mut cov = Vec::with_capacity(9 * n);
     let w = |x: T| -> f64 { x.extract(0).into() };
     for i in 0..n {
         let s = rec.sample(i);
@@ -31,8 +33,12 @@ fn run<T: Lane>(spec: &FilterSpec, rec: &rootfuse::io::Recording) -> f64 {
         quat.extend_from_slice(&[w(q.w), w(q.x), w(q.y), w(q.z)]);
         let b = f.bias();
         bias.extend_from_slice(&[w(b.x), w(b.y), w(b.z)]);
+        if let Some(p) = f.attitude_covariance() {
+            cov.extend(p.m.iter().flatten().map(|&x| w(x)));
+        }
     }
     quat.iter().sum::<f64>()
+        + cov.iter().sum::<f64>()
         + bias.iter().sum::<f64>()
         + flags.iter().map(|&x| f64::from(x)).sum::<f64>()
 }

@@ -518,8 +518,16 @@ impl<T: Lane> SqrtEskf<T> {
     /// [`quat`](OrientationFilter::quat). In 9D the heading variance is that of the magnetic
     /// heading offset and its correlation with the inclination is not tracked (set to zero).
     pub fn attitude_covariance(&self) -> Mat<T, 3, 3> {
-        let p = self.covariance();
-        let mut a = Mat::<T, 3, 3>::from_fn(|i, j| p.m[i][j]);
+        // The attitude block of `S·Sᵀ` only (`S` upper triangular: `S_ik = 0` for `k < i`):
+        // a quarter of the full product, the same sums in the same order.
+        let s = &self.state.factor;
+        let mut a = Mat::<T, 3, 3>::from_fn(|i, j| {
+            let mut v = T::zero();
+            for k in i.max(j)..6 {
+                v = s.m[i][k].mul_add(s.m[j][k], v);
+            }
+            v
+        });
         if self.nine_d {
             for i in 0..2 {
                 a.m[i][2] = T::zero();
