@@ -34,7 +34,14 @@ enum DeviceKey {
 pub struct Devices {
     index: HashMap<DeviceKey, u32>,
     labels: Vec<String>,
+    /// Device number of the integer keys `0..SMALL_KEYS` seen (`u32::MAX`: not seen): rows
+    /// of many devices interleave, so the key changes from row to row and a hash lookup per
+    /// row showed in profiles.
+    small: Vec<u32>,
 }
+
+/// Integer device keys below this are looked up in a table rather than hashed.
+const SMALL_KEYS: i64 = 1 << 16;
 
 impl Devices {
     /// Number of devices seen.
@@ -53,10 +60,25 @@ impl Devices {
     }
 
     fn id(&mut self, key: DeviceKey) -> u32 {
+        let small = match key {
+            DeviceKey::Int(v) if (0..SMALL_KEYS).contains(&v) => Some(v as usize),
+            _ => None,
+        };
+        if let Some(&d) = small.and_then(|i| self.small.get(i))
+            && d != u32::MAX
+        {
+            return d;
+        }
         if let Some(&d) = self.index.get(&key) {
             return d;
         }
         let d = self.labels.len() as u32;
+        if let Some(i) = small {
+            if self.small.len() <= i {
+                self.small.resize(i + 1, u32::MAX);
+            }
+            self.small[i] = d;
+        }
         self.labels.push(match &key {
             DeviceKey::Int(v) => v.to_string(),
             DeviceKey::Text(s) => s.clone(),
