@@ -451,6 +451,72 @@ fn empty_record_batch_is_skipped_and_noted() {
     assert!(out.join("gaps.arrow").is_file());
 }
 
+/// An Arrow IPC stream (`.arrows`, or `.arrow` as pyarrow's stream writer leaves it) runs
+/// like the same rows in an IPC file; a stream cut after its last whole record batch (the
+/// end-of-stream marker lost) is refused naming the file, exit code 2, nothing written.
+#[test]
+fn arrow_ipc_stream_runs_like_the_ipc_file() {
+    let dir = temp_dir("stream");
+    let batch = RecordBatch::try_from_iter(fleet_columns(40)).unwrap();
+    let parts = [batch.slice(0, 25), batch.slice(25, 15)];
+    let file = dir.join("file.arrow");
+    let mut w = arrow::ipc::writer::FileWriter::try_new(
+        std::fs::File::create(&file).unwrap(),
+        &batch.schema(),
+    )
+    .unwrap();
+    for b in &parts {
+        w.write(b).unwrap();
+    }
+    w.finish().unwrap();
+    let estimates = |input: &Path, out: &str| {
+        let out = dir.join(out);
+        let (code, stdout, stderr) = run(&[
+            &"run",
+            &input,
+            &"--filter",
+            &"mahony",
+            &"--dof",
+            &"6",
+            &"--format",
+            &"parquet",
+            &"--out",
+            &out,
+        ]);
+        assert_eq!(code, Some(0), "{}: {stderr}", input.display());
+        assert!(stdout.contains("40 samples"), "{stdout}");
+        let stem = input.file_stem().unwrap().to_string_lossy().into_owned();
+        read_parquet_estimates(&out.join(format!("{stem}.parquet")))
+    };
+    let expected = estimates(&file, "o-file");
+    assert_eq!(expected.len(), 40);
+    for name in ["stream.arrows", "stream-named.arrow"] {
+        let stream = dir.join(name);
+        let mut w = arrow::ipc::writer::StreamWriter::try_new(
+            std::fs::File::create(&stream).unwrap(),
+            &batch.schema(),
+        )
+        .unwrap();
+        for b in &parts {
+            w.write(b).unwrap();
+        }
+        w.finish().unwrap();
+        assert_eq!(estimates(&stream, &format!("o-{name}")), expected, "{name}");
+    }
+    let bytes = std::fs::read(dir.join("stream.arrows")).unwrap();
+    let cut = dir.join("cut.arrows");
+    std::fs::write(&cut, &bytes[..bytes.len() - 8]).unwrap();
+    refused(
+        &dir,
+        &cut,
+        &[],
+        &[
+            "cut.arrows: record batch 2: not a readable Arrow IPC stream file",
+            "end-of-stream marker",
+        ],
+    );
+}
+
 /// `--keep-going`: a device whose time goes back is left out from that row on, a corrupt
 /// file is skipped; the other devices and files complete, exit code 1.
 #[test]

@@ -51,16 +51,14 @@ impl FleetFileWriter {
         );
         let schema = Arc::new(Schema::new(fields));
         let sink = match format {
-            Format::Parquet => {
-                Sink::Parquet(
-                    ArrowWriter::try_new(
-                        AtomicFile::create(path)?,
-                        schema.clone(),
-                        Some(parquet_properties()),
-                    )
-                        .map_err(|e| write_error(&e))?,
+            Format::Parquet => Sink::Parquet(
+                ArrowWriter::try_new(
+                    AtomicFile::create(path)?,
+                    schema.clone(),
+                    Some(parquet_properties()),
                 )
-            }
+                .map_err(|e| write_error(&e))?,
+            ),
             Format::Arrow => Sink::Arrow(
                 arrow::ipc::writer::FileWriter::try_new(AtomicFile::create(path)?, &schema)
                     .map_err(|e| write_error(&e))?,
