@@ -9,7 +9,7 @@
 # Usage: scripts/fleet-bench.sh [BIN] [SCRATCH]   (BIN default target/release/rootfuse;
 # SCRATCH default /tmp/rootfuse-fleet-bench, about 3 GB, removed at the end)
 # Environment: PAIRS (default 5); FILTER (default mahony); FLAGSHIP_FLEET=1 also runs the
-# 1000 devices x 10 min x 100 Hz flagship fleet (6.7 GB of Parquet).
+# 1000 devices x 10 min x 100 Hz flagship fleet (5.9 GB of Parquet).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${1:-target/release/rootfuse}
