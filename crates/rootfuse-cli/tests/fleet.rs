@@ -3,6 +3,7 @@
 //! column, exit code 2 and no output file; `--keep-going` completes the rest (exit code 1).
 use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::{Float64Type, Int64Type};
+use arrow::record_batch::RecordBatchWriter;
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use rootfuse_attitude::registry::FilterSpec;
@@ -459,16 +460,18 @@ fn arrow_ipc_stream_runs_like_the_ipc_file() {
     let dir = temp_dir("stream");
     let batch = RecordBatch::try_from_iter(fleet_columns(40)).unwrap();
     let parts = [batch.slice(0, 25), batch.slice(25, 15)];
-    let file = dir.join("file.arrow");
-    let mut w = arrow::ipc::writer::FileWriter::try_new(
-        std::fs::File::create(&file).unwrap(),
-        &batch.schema(),
-    )
-    .unwrap();
-    for b in &parts {
-        w.write(b).unwrap();
+    fn write_all(mut w: impl RecordBatchWriter, parts: &[RecordBatch]) {
+        for b in parts {
+            w.write(b).unwrap();
+        }
+        w.close().unwrap();
     }
-    w.finish().unwrap();
+    let file = dir.join("file.arrow");
+    let create = |path: &Path| std::fs::File::create(path).unwrap();
+    write_all(
+        arrow::ipc::writer::FileWriter::try_new(create(&file), &batch.schema()).unwrap(),
+        &parts,
+    );
     let estimates = |input: &Path, out: &str| {
         let out = dir.join(out);
         let (code, stdout, stderr) = run(&[
@@ -492,15 +495,10 @@ fn arrow_ipc_stream_runs_like_the_ipc_file() {
     assert_eq!(expected.len(), 40);
     for name in ["stream.arrows", "stream-named.arrow"] {
         let stream = dir.join(name);
-        let mut w = arrow::ipc::writer::StreamWriter::try_new(
-            std::fs::File::create(&stream).unwrap(),
-            &batch.schema(),
-        )
-        .unwrap();
-        for b in &parts {
-            w.write(b).unwrap();
-        }
-        w.finish().unwrap();
+        write_all(
+            arrow::ipc::writer::StreamWriter::try_new(create(&stream), &batch.schema()).unwrap(),
+            &parts,
+        );
         assert_eq!(estimates(&stream, &format!("o-{name}")), expected, "{name}");
     }
     let bytes = std::fs::read(dir.join("stream.arrows")).unwrap();

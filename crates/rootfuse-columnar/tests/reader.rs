@@ -1,6 +1,7 @@
 //! [`FleetReader`] on the Arrow IPC stream format (told from the file format by content) and
 //! on parts without rows.
 use arrow::array::{ArrayRef, Float64Array, RecordBatch, StringArray};
+use arrow::record_batch::RecordBatchWriter;
 use parquet::arrow::ArrowWriter;
 use rootfuse_columnar::{ColumnarError, Devices, FleetReader, ImuGaps, Part};
 use std::path::{Path, PathBuf};
@@ -72,20 +73,21 @@ fn pieces(batch: &RecordBatch, sizes: &[usize]) -> Vec<RecordBatch> {
 
 fn write_ipc_file(path: &Path, batches: &[RecordBatch]) {
     let file = std::fs::File::create(path).unwrap();
-    let mut w = arrow::ipc::writer::FileWriter::try_new(file, &batches[0].schema()).unwrap();
-    for b in batches {
-        w.write(b).unwrap();
-    }
-    w.finish().unwrap();
+    let w = arrow::ipc::writer::FileWriter::try_new(file, &batches[0].schema()).unwrap();
+    write_all(w, batches);
 }
 
 fn write_ipc_stream(path: &Path, batches: &[RecordBatch]) {
     let file = std::fs::File::create(path).unwrap();
-    let mut w = arrow::ipc::writer::StreamWriter::try_new(file, &batches[0].schema()).unwrap();
+    let w = arrow::ipc::writer::StreamWriter::try_new(file, &batches[0].schema()).unwrap();
+    write_all(w, batches);
+}
+
+fn write_all(mut w: impl RecordBatchWriter, batches: &[RecordBatch]) {
     for b in batches {
         w.write(b).unwrap();
     }
-    w.finish().unwrap();
+    w.close().unwrap();
 }
 
 /// Every block of `path` with its place, the device labels and the skipped parts.
