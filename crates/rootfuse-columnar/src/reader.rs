@@ -133,9 +133,9 @@ enum Source {
 ///
 /// The format is told by the file's first bytes (`PAR1`: Parquet; `ARROW1`: Arrow IPC
 /// file); a file with neither magic is read as an Arrow IPC stream when its name is an Arrow
-/// one ([`Format::of_path`]: `.arrow`, `.arrows`, ...), else as Parquet. A stream must end
-/// with its end-of-stream marker: one that stops after a whole message is refused as
-/// truncated rather than read as complete.
+/// one ([`Format::of_path`](crate::Format::of_path): `.arrow`, `.arrows`, ...), else as
+/// Parquet. A stream must end with its end-of-stream marker: one that stops after a whole
+/// message is refused as truncated rather than read as complete.
 ///
 /// Columns are found by name, as in the CSV format: `t` (s), `gx,gy,gz` (rad/s), `ax,ay,az`
 /// (m/s²), optionally `mx,my,mz` (all three or none) and `device` (an integer or string
