@@ -30,7 +30,12 @@ fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String) {
 
 /// `rootfuse run INPUT --filter mahony --dof 6 --out OUT`.
 fn run_6d(input: &Path, out: &Path) -> (Option<i32>, String, String) {
-    run(&[
+    run_6d_with(input, out, &[])
+}
+
+/// [`run_6d`] with `extra` arguments after the others.
+fn run_6d_with(input: &Path, out: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
+    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
         &"run",
         &input,
         &"--filter",
@@ -39,7 +44,11 @@ fn run_6d(input: &Path, out: &Path) -> (Option<i32>, String, String) {
         &"6",
         &"--out",
         &out,
-    ])
+    ];
+    for e in extra {
+        args.push(e);
+    }
+    run(&args)
 }
 
 /// Every file in `dir` (none may be a temporary file).
@@ -270,20 +279,7 @@ fn replace(
 /// output folder holds no file at all (nothing half-written).
 fn refused(dir: &Path, input: &Path, extra: &[&str], expected: &[&str]) {
     let out = dir.join("o");
-    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
-        &"run",
-        &input,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--out",
-        &out,
-    ];
-    for e in extra {
-        args.push(e);
-    }
-    let (code, _, stderr) = run(&args);
+    let (code, _, stderr) = run_6d_with(input, &out, extra);
     assert_eq!(code, Some(2), "{}: {stderr}", input.display());
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     for part in expected {
@@ -474,18 +470,7 @@ fn arrow_ipc_stream_runs_like_the_ipc_file() {
     );
     let estimates = |input: &Path, out: &str| {
         let out = dir.join(out);
-        let (code, stdout, stderr) = run(&[
-            &"run",
-            &input,
-            &"--filter",
-            &"mahony",
-            &"--dof",
-            &"6",
-            &"--format",
-            &"parquet",
-            &"--out",
-            &out,
-        ]);
+        let (code, stdout, stderr) = run_6d_with(input, &out, &["--format", "parquet"]);
         assert_eq!(code, Some(0), "{}: {stderr}", input.display());
         assert!(stdout.contains("40 samples"), "{stdout}");
         let stem = input.file_stem().unwrap().to_string_lossy().into_owned();
