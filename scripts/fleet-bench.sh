@@ -1,27 +1,37 @@
 #!/usr/bin/env bash
-# Fleet I/O figures of README's "Fleets" table: peak memory of `rootfuse run` for 1e6 and 1e7
-# rows (CSV and Parquet: streaming keeps it flat), and end-to-end samples/s of the same data as
-# Parquet and as CSV. Whole-process figures from /usr/bin/time -v.
+# Fleet I/O figures of README's "Fleets" table, whole-process figures from /usr/bin/time:
+# 1. Parquet in and out against CSV in and out on the same 1e6 samples (100 devices: one
+#    Parquet file vs 100 CSV files), PAIRS interleaved pairs (P C P C ...), each pair's
+#    ratio of wall and CPU time, and the medians;
+# 2. peak memory of `rootfuse run` for 1e6 and 1e7 rows, Parquet (100 devices) and CSV (one
+#    recording), which streaming keeps flat; and `--offline` on the 1e6-row CSV.
 #
 # Usage: scripts/fleet-bench.sh [BIN] [SCRATCH]   (BIN default target/release/rootfuse;
-# SCRATCH default /tmp/rootfuse-fleet-bench, about 4 GB, removed at the end)
-# Optional: FLAGSHIP_FLEET=1 also runs the 1000 devices x 10 min x 100 Hz flagship fleet.
+# SCRATCH default /tmp/rootfuse-fleet-bench, about 3 GB, removed at the end)
+# Environment: PAIRS (default 5); FILTER (default mahony); FLAGSHIP_FLEET=1 also runs the
+# 1000 devices x 10 min x 100 Hz flagship fleet (5.9 GB of Parquet).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${1:-target/release/rootfuse}
 scratch=${2:-/tmp/rootfuse-fleet-bench}
+pairs=${PAIRS:-5}
+filter=${FILTER:-mahony}
 rm -rf "$scratch"
 mkdir -p "$scratch"
 trap 'rm -rf "$scratch"' EXIT
 
-measure() { # label, command...: prints label, wall s, peak RSS MB and the run's summary line
+# measure LABEL COMMAND...: runs it once, prints label, wall s, CPU s, peak RSS MB and the
+# run's summary line; leaves "wall cpu" in $scratch/last.
+measure() {
     local label=$1
     shift
-    /usr/bin/time -v "$@" >"$scratch/stdout" 2>"$scratch/time"
-    local wall rss
-    wall=$(awk -F': ' '/Elapsed \(wall clock\)/ {print $2}' "$scratch/time")
-    rss=$(awk -F': ' '/Maximum resident set size/ {printf "%.0f", $2 / 1024}' "$scratch/time")
-    printf '%-44s wall %8s  peak RSS %6s MB  %s\n' "$label" "$wall" "$rss" "$(head -1 "$scratch/stdout")"
+    /usr/bin/time -f '%e %U %S %M' -o "$scratch/time" "$@" >"$scratch/stdout" 2>"$scratch/stderr"
+    read -r wall user sys rss <"$scratch/time"
+    local cpu
+    cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.2f", u + s }')
+    echo "$wall $cpu" >"$scratch/last"
+    printf '%-48s wall %7.2f s  cpu %7.2f s  peak RSS %5.0f MB  %s\n' "$label" "$wall" "$cpu" \
+        "$(awk -v k="$rss" 'BEGIN { print k / 1024 }')" "$(head -1 "$scratch/stdout")"
 }
 
 # A fleet file as CSV recordings, one per device (pyarrow from .venv, which
@@ -39,15 +49,38 @@ for k in devices:
 PY
 }
 
-# 1e6 and 1e7 rows as fleets of 100 devices at 100 Hz.
+echo "== Parquet in+out vs CSV in+out, $filter, the same 1e6 samples (100 devices x 100 s x 100 Hz)"
+"$bin" simulate --devices 100 --seconds 100 --rate 100 --out "$scratch/same.parquet" >/dev/null
+mkdir -p "$scratch/csv-in"
+to_csv "$scratch/same.parquet" "$scratch/csv-in"
+: >"$scratch/pairs"
+for i in $(seq "$pairs"); do
+    measure "pair $i: parquet in+out, one file" \
+        "$bin" run "$scratch/same.parquet" --filter "$filter" --out "$scratch/p-out"
+    p=$(cat "$scratch/last")
+    measure "pair $i: csv in+out, 100 files" \
+        "$bin" run "$scratch/csv-in" --filter "$filter" --out "$scratch/c-out"
+    echo "$p $(cat "$scratch/last")" >>"$scratch/pairs"
+done
+# Per pair: CSV time / Parquet time = how many times the samples/s of CSV Parquet reaches.
+summary() { # column: "median (min, max)" of that column of the per-pair ratios
+    sort -g -k"$1" "$scratch/ratios" | awk -v k="$1" '{ v[NR] = $k }
+        END { printf "%.2fx (min %.2f, max %.2f)", v[int((NR + 1) / 2)], v[1], v[NR] }'
+}
+awk '{ printf "%.4f %.4f\n", $3 / $1, $4 / $2 }' "$scratch/pairs" >"$scratch/ratios"
+echo "Parquet samples/s over CSV samples/s, $pairs pairs: wall $(summary 1), cpu $(summary 2)"
+rm -rf "$scratch/csv-in" "$scratch/p-out" "$scratch/c-out" "$scratch/same.parquet"
+
+echo "== peak memory, 1e6 and 1e7 rows"
 for rows in 1000000 10000000; do
     seconds=$((rows / 100 / 100))
     fleet="$scratch/fleet-$rows.parquet"
     "$bin" simulate --devices 100 --seconds "$seconds" --rate 100 --out "$fleet" >/dev/null
-    measure "parquet -> parquet, mahony, $rows rows" \
-        "$bin" run "$fleet" --filter mahony --out "$scratch/o-parquet-$rows"
-    measure "parquet -> csv, mahony, $rows rows" \
-        "$bin" run "$fleet" --filter mahony --format csv --out "$scratch/o-csv-$rows"
+    measure "parquet -> parquet, $filter, $rows rows" \
+        "$bin" run "$fleet" --filter "$filter" --out "$scratch/o-parquet-$rows"
+    measure "parquet -> csv, $filter, $rows rows" \
+        "$bin" run "$fleet" --filter "$filter" --format csv --out "$scratch/o-csv-$rows"
+    rm -rf "$fleet" "$scratch/o-parquet-$rows" "$scratch/o-csv-$rows"
 done
 # The same 1e6 and 1e7 samples as one CSV recording (the run used to read it whole).
 for rows in 1000000 10000000; do
@@ -55,20 +88,15 @@ for rows in 1000000 10000000; do
     csv="$scratch/one-$rows.csv"
     "$bin" simulate --devices 1 --seconds "$seconds" --rate 100 --out "$scratch/one.parquet" >/dev/null
     to_csv "$scratch/one.parquet" "$csv"
-    measure "csv -> csv, mahony, one recording of $rows" \
-        "$bin" run "$csv" --filter mahony --out "$scratch/o-one-$rows"
-    measure "csv --offline, sqrt-eskf, one recording of $rows" \
-        "$bin" run "$csv" --filter sqrt-eskf --offline --out "$scratch/o-off-$rows"
-    rm -f "$csv"
+    rm -f "$scratch/one.parquet"
+    measure "csv -> csv, $filter, one recording of $rows" \
+        "$bin" run "$csv" --filter "$filter" --out "$scratch/o-one-$rows"
+    if [ "$rows" = 1000000 ]; then
+        measure "csv --offline, sqrt-eskf, one recording of $rows" \
+            "$bin" run "$csv" --filter sqrt-eskf --offline --out "$scratch/o-off-$rows"
+    fi
+    rm -rf "$csv" "$scratch/o-one-$rows" "$scratch/o-off-$rows"
 done
-# CSV in and out vs Parquet in and out on the same fleet (1e7 rows).
-"$bin" simulate --devices 100 --seconds 1000 --rate 100 --out "$scratch/same.parquet" >/dev/null
-mkdir -p "$scratch/csv-in"
-to_csv "$scratch/same.parquet" "$scratch/csv-in"
-measure "parquet in+out, mahony, 1e7 rows, 100 devices" \
-    "$bin" run "$scratch/same.parquet" --filter mahony --out "$scratch/p-out"
-measure "csv in+out, mahony, 1e7 rows, 100 files" \
-    "$bin" run "$scratch/csv-in" --filter mahony --out "$scratch/c-out"
 if [ "${FLAGSHIP_FLEET:-0}" = 1 ]; then
     "$bin" simulate --devices 1000 --seconds 600 --rate 100 --out "$scratch/big.parquet" >/dev/null
     measure "flagship, 1000 devices x 600 s x 100 Hz" \

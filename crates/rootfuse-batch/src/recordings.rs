@@ -233,6 +233,7 @@ pub(crate) struct StepLanes<L: Lane> {
 }
 
 /// One lane's estimates after one step, in `f64`; `None` for a series not collected.
+#[derive(Clone, Copy)]
 pub(crate) struct StepEstimates {
     pub quat: Quat<f64>,
     pub bias: Option<Vec3<f64>>,

@@ -26,9 +26,9 @@ const EXIT_INTERRUPTED: i32 = 130;
 /// Options of `rootfuse run`.
 #[derive(Args)]
 pub struct RunArgs {
-    /// IMU files: CSV (one recording each), or Parquet / Arrow IPC fleets (rows of many
-    /// devices told apart by a `device` column); or folders of them (every `*.csv` but
-    /// `index.csv`, or every `*.parquet` / `*.arrow`).
+    /// IMU files: CSV (one recording each), or Parquet / Arrow IPC (file or stream format)
+    /// fleets (rows of many devices told apart by a `device` column); or folders of them
+    /// (every `*.csv` but `index.csv`, or every `*.parquet` / `*.arrow` / `*.arrows`).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     #[command(flatten)]

@@ -3,6 +3,7 @@
 //! column, exit code 2 and no output file; `--keep-going` completes the rest (exit code 1).
 use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::{Float64Type, Int64Type};
+use arrow::record_batch::RecordBatchWriter;
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use rootfuse_attitude::registry::FilterSpec;
@@ -29,7 +30,12 @@ fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String) {
 
 /// `rootfuse run INPUT --filter mahony --dof 6 --out OUT`.
 fn run_6d(input: &Path, out: &Path) -> (Option<i32>, String, String) {
-    run(&[
+    run_6d_with(input, out, &[])
+}
+
+/// [`run_6d`] with `extra` arguments after the others.
+fn run_6d_with(input: &Path, out: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
+    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
         &"run",
         &input,
         &"--filter",
@@ -38,7 +44,11 @@ fn run_6d(input: &Path, out: &Path) -> (Option<i32>, String, String) {
         &"6",
         &"--out",
         &out,
-    ])
+    ];
+    for e in extra {
+        args.push(e);
+    }
+    run(&args)
 }
 
 /// Every file in `dir` (none may be a temporary file).
@@ -269,20 +279,7 @@ fn replace(
 /// output folder holds no file at all (nothing half-written).
 fn refused(dir: &Path, input: &Path, extra: &[&str], expected: &[&str]) {
     let out = dir.join("o");
-    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
-        &"run",
-        &input,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--out",
-        &out,
-    ];
-    for e in extra {
-        args.push(e);
-    }
-    let (code, _, stderr) = run(&args);
+    let (code, _, stderr) = run_6d_with(input, &out, extra);
     assert_eq!(code, Some(2), "{}: {stderr}", input.display());
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     for part in expected {
@@ -449,6 +446,58 @@ fn empty_record_batch_is_skipped_and_noted() {
     );
     assert!(stdout.contains("20 samples"), "{stdout}");
     assert!(out.join("gaps.arrow").is_file());
+}
+
+/// An Arrow IPC stream (`.arrows`, or `.arrow` as pyarrow's stream writer leaves it) runs
+/// like the same rows in an IPC file; a stream cut after its last whole record batch (the
+/// end-of-stream marker lost) is refused naming the file, exit code 2, nothing written.
+#[test]
+fn arrow_ipc_stream_runs_like_the_ipc_file() {
+    let dir = temp_dir("stream");
+    let batch = RecordBatch::try_from_iter(fleet_columns(40)).unwrap();
+    let parts = [batch.slice(0, 25), batch.slice(25, 15)];
+    fn write_all(mut w: impl RecordBatchWriter, parts: &[RecordBatch]) {
+        for b in parts {
+            w.write(b).unwrap();
+        }
+        w.close().unwrap();
+    }
+    let file = dir.join("file.arrow");
+    let create = |path: &Path| std::fs::File::create(path).unwrap();
+    write_all(
+        arrow::ipc::writer::FileWriter::try_new(create(&file), &batch.schema()).unwrap(),
+        &parts,
+    );
+    let estimates = |input: &Path, out: &str| {
+        let out = dir.join(out);
+        let (code, stdout, stderr) = run_6d_with(input, &out, &["--format", "parquet"]);
+        assert_eq!(code, Some(0), "{}: {stderr}", input.display());
+        assert!(stdout.contains("40 samples"), "{stdout}");
+        let stem = input.file_stem().unwrap().to_string_lossy().into_owned();
+        read_parquet_estimates(&out.join(format!("{stem}.parquet")))
+    };
+    let expected = estimates(&file, "o-file");
+    assert_eq!(expected.len(), 40);
+    for name in ["stream.arrows", "stream-named.arrow"] {
+        let stream = dir.join(name);
+        write_all(
+            arrow::ipc::writer::StreamWriter::try_new(create(&stream), &batch.schema()).unwrap(),
+            &parts,
+        );
+        assert_eq!(estimates(&stream, &format!("o-{name}")), expected, "{name}");
+    }
+    let bytes = std::fs::read(dir.join("stream.arrows")).unwrap();
+    let cut = dir.join("cut.arrows");
+    std::fs::write(&cut, &bytes[..bytes.len() - 8]).unwrap();
+    refused(
+        &dir,
+        &cut,
+        &[],
+        &[
+            "cut.arrows: record batch 2: not a readable Arrow IPC stream file",
+            "end-of-stream marker",
+        ],
+    );
 }
 
 /// `--keep-going`: a device whose time goes back is left out from that row on, a corrupt

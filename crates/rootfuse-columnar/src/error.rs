@@ -42,7 +42,7 @@ pub enum ColumnarError {
     Format {
         /// The file.
         file: PathBuf,
-        /// `Parquet` or `Arrow IPC`.
+        /// `Parquet`, `Arrow IPC` or `Arrow IPC stream`.
         format: &'static str,
         /// Where, when known (`"row group 3: "`), else empty.
         part: String,

@@ -14,8 +14,9 @@
 //! device named after its stem. Other columns (truth `qw..qz`, `use`) are ignored by
 //! [`FleetReader`]. A null IMU value is read as NaN, a dropped packet (kept for the filter to
 //! skip, or refused with [`ImuGaps::Refuse`]). Parquet files are read one row group at a time
-//! and Arrow IPC files (the file format, `.arrow`) one record batch at a time, in blocks of at
-//! most [`BLOCK_ROWS`] rows.
+//! and Arrow IPC files (the file or the stream format, told apart by their first bytes) one
+//! record batch at a time, in blocks of at most [`BLOCK_ROWS`] rows. Row groups and record
+//! batches without rows are skipped and listed ([`FleetReader::empty_parts`]), not refused.
 //!
 //! Estimates ([`EstimateWriter`]) are `device` (when the input had one, same type), `t`,
 //! `qw,qx,qy,qz` (sensor to earth, ENU) and the optional `bx,by,bz`, `p_xx..p_zz`, `flags`
@@ -32,6 +33,7 @@
 #![warn(missing_docs)]
 
 mod error;
+mod kind;
 mod reader;
 mod recordings;
 mod writer;
@@ -51,7 +53,8 @@ pub enum Format {
     Csv,
     /// Apache Parquet (`.parquet`, `.pq`).
     Parquet,
-    /// Arrow IPC, file format (`.arrow`, `.feather`, `.ipc`).
+    /// Arrow IPC (`.arrow`, `.arrows`, `.feather`, `.ipc`): written in the file format, read
+    /// in the file or the stream format (told apart by the file's first bytes).
     Arrow,
 }
 
@@ -62,7 +65,7 @@ impl Format {
         match ext.as_str() {
             "csv" => Some(Self::Csv),
             "parquet" | "pq" => Some(Self::Parquet),
-            "arrow" | "feather" | "ipc" => Some(Self::Arrow),
+            "arrow" | "arrows" | "feather" | "ipc" => Some(Self::Arrow),
             _ => None,
         }
     }

@@ -1,7 +1,8 @@
 //! [`FleetReader`]: a Parquet or Arrow IPC file read a block of rows at a time.
 
+use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
-use crate::{DEVICE, Format};
+use crate::kind::{self, EndAware, Kind};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch};
 use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
 use parquet::arrow::ProjectionMask;
@@ -34,7 +35,14 @@ enum DeviceKey {
 pub struct Devices {
     index: HashMap<DeviceKey, u32>,
     labels: Vec<String>,
+    /// Device number of the integer keys `0..SMALL_KEYS` seen (`u32::MAX`: not seen): rows
+    /// of many devices interleave, so the key changes from row to row and a hash lookup per
+    /// row showed in profiles.
+    small: Vec<u32>,
 }
+
+/// Integer device keys below this are looked up in a table rather than hashed.
+const SMALL_KEYS: i64 = 1 << 16;
 
 impl Devices {
     /// Number of devices seen.
@@ -53,10 +61,25 @@ impl Devices {
     }
 
     fn id(&mut self, key: DeviceKey) -> u32 {
+        let small = match key {
+            DeviceKey::Int(v) if (0..SMALL_KEYS).contains(&v) => Some(v as usize),
+            _ => None,
+        };
+        if let Some(&d) = small.and_then(|i| self.small.get(i))
+            && d != u32::MAX
+        {
+            return d;
+        }
         if let Some(&d) = self.index.get(&key) {
             return d;
         }
         let d = self.labels.len() as u32;
+        if let Some(i) = small {
+            if self.small.len() <= i {
+                self.small.resize(i + 1, u32::MAX);
+            }
+            self.small[i] = d;
+        }
         self.labels.push(match &key {
             DeviceKey::Int(v) => v.to_string(),
             DeviceKey::Text(s) => s.clone(),
@@ -98,19 +121,29 @@ enum Source {
         projection: Vec<usize>,
         current: Option<ParquetRecordBatchReader>,
     },
-    Ipc {
+    IpcFile {
         reader: arrow::ipc::reader::FileReader<std::io::BufReader<std::fs::File>>,
+    },
+    IpcStream {
+        reader: arrow::ipc::reader::StreamReader<EndAware<std::io::BufReader<std::fs::File>>>,
     },
 }
 
-/// A Parquet or Arrow IPC (file format) fleet read block by block.
+/// A Parquet or Arrow IPC (file or stream format) fleet read block by block.
+///
+/// The format is told by the file's first bytes (`PAR1`: Parquet; `ARROW1`: Arrow IPC
+/// file); a file with neither magic is read as an Arrow IPC stream when its name is an Arrow
+/// one ([`Format::of_path`](crate::Format::of_path): `.arrow`, `.arrows`, ...), else as
+/// Parquet. A stream must end with its end-of-stream marker: one that stops after a whole
+/// message is refused as truncated rather than read as complete.
 ///
 /// Columns are found by name, as in the CSV format: `t` (s), `gx,gy,gz` (rad/s), `ax,ay,az`
 /// (m/s²), optionally `mx,my,mz` (all three or none) and `device` (an integer or string
 /// column; without it the file is one device named after its stem); float32 or float64;
 /// other columns are ignored and not read. A null IMU value is read as NaN (a dropped
-/// packet). Row groups (record batches) without rows are skipped and counted
-/// ([`empty_parts`](Self::empty_parts)).
+/// packet). Row groups (record batches) without rows are skipped, not an error, and listed
+/// ([`empty_parts`](Self::empty_parts)) for the caller to report; a file whose parts are
+/// all empty has no rows ([`ColumnarError::Empty`] is the caller's to raise).
 pub struct FleetReader {
     file: PathBuf,
     source: Source,
@@ -128,37 +161,55 @@ pub struct FleetReader {
 }
 
 impl FleetReader {
-    /// Opens `path` (Parquet or Arrow IPC file, by [`Format::of_path`]) and checks its schema.
+    /// Opens `path` (Parquet, Arrow IPC file or stream: see the type's documentation) and
+    /// checks its schema.
     pub fn open(path: impl AsRef<Path>, gaps: ImuGaps) -> Result<Self, ColumnarError> {
         let path = path.as_ref();
-        let file = std::fs::File::open(path).map_err(|source| ColumnarError::Io {
+        let io = |source| ColumnarError::Io {
             file: path.to_owned(),
             source,
-        })?;
-        let format = Format::of_path(path);
+        };
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let kind = kind::detect(path, &mut file).map_err(io)?;
         let stem = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (source, schema, parts, name) = if format == Some(Format::Arrow) {
-            let reader =
-                arrow::ipc::reader::FileReader::try_new(std::io::BufReader::new(file), None)
-                    .map_err(|e| format_error(path, "Arrow IPC", None, e))?;
-            let schema = reader.schema();
-            let parts = reader.num_batches();
-            (Source::Ipc { reader }, schema, parts, "Arrow IPC")
-        } else {
-            let meta = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())
-                .map_err(|e| format_error(path, "Parquet", None, e))?;
-            let schema = meta.schema().clone();
-            let parts = meta.metadata().num_row_groups();
-            let source = Source::Parquet {
-                file,
-                meta,
-                projection: Vec::new(),
-                current: None,
-            };
-            (source, schema, parts, "Parquet")
+        let (source, schema, parts, name) = match kind {
+            Kind::IpcFile => {
+                let reader =
+                    arrow::ipc::reader::FileReader::try_new(std::io::BufReader::new(file), None)
+                        .map_err(|e| format_error(path, "Arrow IPC", None, e))?;
+                let schema = reader.schema();
+                let parts = reader.num_batches();
+                (Source::IpcFile { reader }, schema, parts, "Arrow IPC")
+            }
+            Kind::IpcStream => {
+                let input = EndAware::new(std::io::BufReader::new(file));
+                let reader = arrow::ipc::reader::StreamReader::try_new(input, None)
+                    .map_err(|e| format_error(path, "Arrow IPC stream", None, e))?;
+                let schema = reader.schema();
+                // The count is known only at the end.
+                (
+                    Source::IpcStream { reader },
+                    schema,
+                    usize::MAX,
+                    "Arrow IPC stream",
+                )
+            }
+            Kind::Parquet => {
+                let meta = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())
+                    .map_err(|e| format_error(path, "Parquet", None, e))?;
+                let schema = meta.schema().clone();
+                let parts = meta.metadata().num_row_groups();
+                let source = Source::Parquet {
+                    file,
+                    meta,
+                    projection: Vec::new(),
+                    current: None,
+                };
+                (source, schema, parts, "Parquet")
+            }
         };
         let (projection, has_mag, device_type) = check_schema(path, &schema)?;
         let mut reader = Self {
@@ -231,7 +282,7 @@ impl FleetReader {
     fn next_batch(&mut self) -> Result<Option<(RecordBatch, Part)>, ColumnarError> {
         let path = self.file.as_path();
         match &mut self.source {
-            Source::Ipc { reader } => loop {
+            Source::IpcFile { reader } => loop {
                 if self.part >= self.parts {
                     return Ok(None);
                 }
@@ -244,6 +295,30 @@ impl FleetReader {
                         self.empty_parts.push(self.part - 1);
                     }
                     Some(Ok(b)) => return Ok(Some((b, part))),
+                }
+            },
+            Source::IpcStream { reader } => loop {
+                let part = Part::RecordBatch(self.part);
+                match reader.next() {
+                    None if reader.get_ref().reached_end() => {
+                        return Err(format_error(
+                            path,
+                            "Arrow IPC stream",
+                            Some(part),
+                            "the file ends without the end-of-stream marker (truncated)",
+                        ));
+                    }
+                    None => return Ok(None),
+                    Some(Err(e)) => {
+                        return Err(format_error(path, "Arrow IPC stream", Some(part), e));
+                    }
+                    Some(Ok(b)) => {
+                        self.part += 1;
+                        if b.num_rows() > 0 {
+                            return Ok(Some((b, part)));
+                        }
+                        self.empty_parts.push(self.part - 1);
+                    }
                 }
             },
             Source::Parquet {
@@ -377,7 +452,7 @@ impl FleetReader {
         })
     }
 
-    /// The file's format name for messages (`Parquet`, `Arrow IPC`).
+    /// The file's format name for messages (`Parquet`, `Arrow IPC`, `Arrow IPC stream`).
     pub fn format_name(&self) -> &'static str {
         self.format
     }

@@ -2,13 +2,11 @@
 
 use crate::error::ColumnarError;
 use crate::reader::BLOCK_ROWS;
-use crate::writer::ROW_GROUP_ROWS;
+use crate::writer::parquet_properties;
 use crate::{DEVICE, Format};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
 use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
 use rootfuse_attitude::Recording;
 use rootfuse_io::AtomicFile;
 use std::path::{Path, PathBuf};
@@ -53,16 +51,14 @@ impl FleetFileWriter {
         );
         let schema = Arc::new(Schema::new(fields));
         let sink = match format {
-            Format::Parquet => {
-                let props = WriterProperties::builder()
-                    .set_compression(Compression::SNAPPY)
-                    .set_max_row_group_row_count(Some(ROW_GROUP_ROWS))
-                    .build();
-                Sink::Parquet(
-                    ArrowWriter::try_new(AtomicFile::create(path)?, schema.clone(), Some(props))
-                        .map_err(|e| write_error(&e))?,
+            Format::Parquet => Sink::Parquet(
+                ArrowWriter::try_new(
+                    AtomicFile::create(path)?,
+                    schema.clone(),
+                    Some(parquet_properties()),
                 )
-            }
+                .map_err(|e| write_error(&e))?,
+            ),
             Format::Arrow => Sink::Arrow(
                 arrow::ipc::writer::FileWriter::try_new(AtomicFile::create(path)?, &schema)
                     .map_err(|e| write_error(&e))?,

@@ -16,7 +16,8 @@ fn scratch(ext: &str) -> PathBuf {
 }
 
 /// Fuzz target `columnar_reader`: [`FleetReader`] on arbitrary bytes, as Parquet when the
-/// input starts with `PAR1` and as an Arrow IPC file otherwise; every block read goes through
+/// input starts with `PAR1` and under an Arrow name otherwise (read as an IPC file after the
+/// magic `ARROW1`, as an IPC stream without it); every block read goes through
 /// a [`FleetRunner`] (Mahony, 6D).
 ///
 /// Invariants: no panic; every block has one device and one time stamp per row, and as many
