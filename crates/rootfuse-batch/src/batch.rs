@@ -370,6 +370,17 @@ impl<L: Lane, F: RegisteredFilter<L>> Batch<L, F> {
         })
     }
 
+    /// [`try_new`](Self::try_new) for a spec that
+    /// [`FilterSpec::visit`](rootfuse_attitude::registry::FilterSpec::visit) handed to its
+    /// visitor together with `F`: the engines that dispatch by visiting build their batches here.
+    pub(crate) fn for_visited_spec(spec: &FilterSpec, channels: usize) -> Self {
+        // Unreachable: `try_new` fails only when `F` is not the spec's filter type, and
+        // `FilterSpec::visit` calls its visitor with exactly that type (`F::from_spec(spec)`
+        // is `Some`).
+        Self::try_new(spec, channels)
+            .expect("unreachable: FilterSpec::visit hands over the spec's own filter type")
+    }
+
     /// One channel per spec, each with its own parameters (for example per-sensor gains or
     /// noise levels); an error if `F` cannot build one of them (with [`AnyFilter`] any
     /// registered filter can, even mixed).

@@ -449,10 +449,9 @@ impl RowEstimate {
 impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
     fn run(&mut self, sources: &[DeviceRows], columns: Columns, est: &mut BlockEstimates) {
         while self.batches.len() * L::LANES < sources.len() {
-            // Unreachable failure: `MakeEngine` was visited with the spec's own filter type.
-            let batch = Batch::<L, F>::try_new(&self.spec, L::LANES)
-                .expect("unreachable: FilterSpec::visit hands over the spec's own filter type");
-            self.batches.push(batch);
+            // `MakeEngine` was visited with the spec's own filter type.
+            self.batches
+                .push(Batch::<L, F>::for_visited_spec(&self.spec, L::LANES));
         }
         // Each chunk writes its rows' estimates into its own part of `rows`: a chunk's lane
         // is active at step `k` exactly when its device has a `k`-th row, so a chunk fills

@@ -179,10 +179,7 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
     sources: &[S],
     columns: Columns,
 ) -> Vec<ChannelOutput> {
-    // Unreachable: `try_new` fails only when `F` is not the spec's filter type, and
-    // `FilterSpec::visit` calls this with exactly that type (`F::from_spec(spec)` is `Some`).
-    let mut batch = Batch::<L, F>::try_new(spec, sources.len())
-        .expect("unreachable: FilterSpec::visit hands over the spec's own filter type");
+    let mut batch = Batch::<L, F>::for_visited_spec(spec, sources.len());
     let capacity = |on: bool, len: usize| if on { len } else { 0 };
     let mut out: Vec<ChannelOutput> = sources
         .iter()

@@ -38,7 +38,9 @@ pub fn columnar_reader(data: &[u8]) {
         let msg = e.to_string();
         assert!(msg.starts_with(&shown), "message without the file: {msg}");
     };
-    let mut spec = FilterSpec::new("mahony").unwrap_or_else(|_| unreachable!());
+    // Unreachable: "mahony" is a registered filter name, and 6 is a value every `dof`
+    // parameter accepts (the registry's own tests check both).
+    let mut spec = FilterSpec::new("mahony").unwrap_or_else(|_| unreachable!("a registered name"));
     if spec.set_dof(rootfuse_attitude::Dof::Six).is_err() {
         unreachable!("mahony has a dof parameter");
     }
@@ -60,6 +62,8 @@ pub fn columnar_reader(data: &[u8]) {
                     assert!(b.device.len() == n && b.gyr.len() == n && b.acc.len() == n);
                     assert!(b.mag.as_ref().is_none_or(|m| m.len() == n));
                     assert!(b.device.iter().all(|&d| (d as usize) < devices.len()));
+                    // Unreachable: with `OnError::DropDevice` a bad device is dropped and
+                    // counted, `step` returns an error only under `OnError::Stop`.
                     let est = runner
                         .step(b, None, OnError::DropDevice)
                         .unwrap_or_else(|_| unreachable!("DropDevice never fails"));
