@@ -39,6 +39,18 @@ pub struct RejectionTotals {
     pub mag_disturbed: u64,
 }
 
+/// Counts summed reason by reason (totals over channels or devices).
+impl core::ops::AddAssign for RejectionTotals {
+    fn add_assign(&mut self, r: Self) {
+        self.dt += r.dt;
+        self.gyr += r.gyr;
+        self.acc += r.acc;
+        self.mag += r.mag;
+        self.gated += r.gated;
+        self.mag_disturbed += r.mag_disturbed;
+    }
+}
+
 impl RejectionTotals {
     /// The counters of one lane of a filter's [`Rejections`](rootfuse_attitude::filters::Rejections).
     pub fn of_lane<T: Lane>(r: &rootfuse_attitude::filters::Rejections<T>, lane: usize) -> Self {
@@ -66,6 +78,41 @@ pub trait ChannelSource: Sync {
     fn sample(&self, i: usize) -> ImuSample<f64>;
     /// Time step before sample `i`, s.
     fn dt(&self, i: usize) -> f64;
+
+    /// Writes samples `start .. start + tile.len()` (all `< len()`) with the step before each
+    /// into lane `lane` of `tile`, one entry per step, rounded to the lane's precision exactly
+    /// as [`sample`](Self::sample) and [`dt`](Self::dt) would give them.
+    ///
+    /// The default reads them one at a time through `sample` and `dt`. Sources over
+    /// contiguous arrays override it with one pass over their memory (and may read `f32`
+    /// storage directly: `f32 → f64 → lane` rounds exactly as `f32 → lane`). Either way the
+    /// engine calls it once per channel and tile of [`TILE_STEPS`] steps, so the channel's
+    /// memory is read in order and the filters take whole vectors from a tile in L1.
+    fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
+        for (k, (s, dt)) in tile.iter_mut().enumerate() {
+            let x = self.sample(start + k);
+            set_sample_lane(s, lane, &x);
+            dt.set_lane(lane, <L::Scalar as Lane>::from_f64(self.dt(start + k)));
+        }
+    }
+}
+
+/// Steps per tile of [`Chunk::run_sources`]: each channel of a chunk hands over this many
+/// samples at once ([`ChannelSource::read_into`]). 64 steps of `f32x8` or `f64x4` samples are
+/// 20 KiB (40 KiB for `X2`), within L1d beside the filter's working set.
+pub const TILE_STEPS: usize = 64;
+
+/// Sets lane `lane` of `s` to the `f64` sample `x`, each value rounded to the lane's precision.
+#[inline]
+pub fn set_sample_lane<L: Lane>(s: &mut ImuSample<L>, lane: usize, x: &ImuSample<f64>) {
+    let set = |v: &mut Vec3<L>, x: Vec3<f64>| {
+        v.x.set_lane(lane, <L::Scalar as Lane>::from_f64(x.x));
+        v.y.set_lane(lane, <L::Scalar as Lane>::from_f64(x.y));
+        v.z.set_lane(lane, <L::Scalar as Lane>::from_f64(x.z));
+    };
+    set(&mut s.gyr, x.gyr);
+    set(&mut s.acc, x.acc);
+    set(&mut s.mag, x.mag);
 }
 
 impl ChannelSource for rootfuse_attitude::Recording {
@@ -100,6 +147,9 @@ impl<S: ChannelSource> ChannelSource for &S {
     }
     fn dt(&self, i: usize) -> f64 {
         (**self).dt(i)
+    }
+    fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
+        (**self).read_into(start, lane, tile);
     }
 }
 
@@ -140,12 +190,6 @@ fn quat_f64<S: Lane + Into<f64>>(q: Quat<S>) -> Quat<f64> {
 #[inline]
 fn vec_f64<S: Lane + Into<f64>>(v: Vec3<S>) -> Vec3<f64> {
     Vec3::new(v.x.into(), v.y.into(), v.z.into())
-}
-
-#[inline]
-fn sample_from_f64<S: Lane>(s: &ImuSample<f64>) -> ImuSample<S> {
-    let c = |v: Vec3<f64>| Vec3::from_f64([v.x, v.y, v.z]);
-    ImuSample::new(c(s.gyr), c(s.acc), c(s.mag))
 }
 
 /// [`Lane::LANES`] channels of one filter `F` (by default any registered filter,
@@ -240,8 +284,12 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
     /// channel shorter than a step is masked there), calling `each(step, chunk, active)`
     /// after every step with the bits of the lanes that had a sample.
     ///
-    /// Samples are packed into lanes one step at a time from a buffer of `LANES` entries
-    /// made once per call: nothing is allocated per update.
+    /// Samples are packed into lanes a tile of [`TILE_STEPS`] steps at a time: each channel
+    /// writes its next samples into its lane of a struct-of-arrays tile
+    /// ([`ChannelSource::read_into`], one pass over its memory), then the filter runs the
+    /// tile's steps on whole vectors. The tile is made once per call: nothing is allocated
+    /// per update. The filter sees exactly the samples and steps it saw step by step, so
+    /// results do not depend on the tiling.
     pub fn run_sources<S: ChannelSource>(
         &mut self,
         sources: &[S],
@@ -249,27 +297,35 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         mut each: impl FnMut(usize, &Self, u64),
     ) {
         let n = sources.len().min(self.used_lanes());
-        let pad = pad_sample::<L::Scalar>();
-        let pad_dt = <L::Scalar as Lane>::from_f64(PAD_DT);
+        let all = if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
         // Lanes past `n` keep the padding sample; `update_masked` decides what they get.
-        let mut buf = vec![(pad, pad_dt); L::LANES];
-        for k in steps {
-            let mut active = 0u64;
-            for (i, (src, slot)) in sources[..n].iter().zip(buf.iter_mut()).enumerate() {
-                if k < src.len() {
-                    let dt = <L::Scalar as Lane>::from_f64(src.dt(k));
-                    *slot = (sample_from_f64(&src.sample(k)), dt);
-                    active |= 1 << i;
-                }
+        let mut tile = vec![(self.pad, self.pad_dt); TILE_STEPS];
+        // Per lane, the steps of the current tile its channel has.
+        let mut avail = vec![0usize; n];
+        let mut k0 = steps.start;
+        while k0 < steps.end {
+            let len = (steps.end - k0).min(TILE_STEPS);
+            for (i, src) in sources[..n].iter().enumerate() {
+                let m = src.len().saturating_sub(k0).min(len);
+                src.read_into(k0, i, &mut tile[..m]);
+                avail[i] = m;
             }
-            let sample = ImuSample::new(
-                Vec3::from_lanes(|i| buf[i].0.gyr),
-                Vec3::from_lanes(|i| buf[i].0.acc),
-                Vec3::from_lanes(|i| buf[i].0.mag),
-            );
-            let dt = L::from_fn(|i| buf[i].1);
-            self.update_masked(&sample, dt, active);
-            each(k, self, active);
+            // Every channel has every step of the tile up to the shortest one.
+            let common = avail.iter().copied().min().unwrap_or(0);
+            for (j, (sample, dt)) in tile[..len].iter().enumerate() {
+                let active = if j < common {
+                    all
+                } else {
+                    avail
+                        .iter()
+                        .enumerate()
+                        .filter(|&(_, &m)| j < m)
+                        .fold(0u64, |bits, (i, _)| bits | 1 << i)
+                };
+                self.update_masked(sample, *dt, active);
+                each(k0 + j, self, active);
+            }
+            k0 += len;
         }
     }
 }

@@ -79,11 +79,18 @@
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and
 //! array-of-structs input ([`Batch::run_channels`], [`run_recordings`]) is packed into lanes
-//! one step at a time through a `LANES`-entry buffer made once per chunk and call. Input is
-//! streamed in blocks: [`Batch::run_soa`] and [`Batch::run_channels`] take one block (any
-//! number of steps) and keep the state for the next, so memory stays flat for recordings of
-//! any length; [`Chunk::run_sources`] runs any step range of any [`ChannelSource`]. Only
-//! [`run_recordings`] holds whole recordings, because its output is the whole estimate.
+//! a tile of [`TILE_STEPS`] steps at a time: each channel writes its next samples into its
+//! lane of a struct-of-arrays tile made once per chunk and call
+//! ([`ChannelSource::read_into`]: one pass over the channel's memory, overridden by sources
+//! over contiguous arrays, such as the Python package's NumPy input, to read `f32` or `f64`
+//! as stored), then the filter runs the tile's steps on whole vectors from L1. Estimates go
+//! where the caller wants them ([`EstimateSink`]: [`ChannelOutput`] vectors, or the caller's
+//! own arrays, written as they come), and [`run_final_states`] keeps only each channel's last
+//! state. Input is streamed in blocks: [`Batch::run_soa`] and [`Batch::run_channels`] take
+//! one block (any number of steps) and keep the state for the next, so memory stays flat for
+//! recordings of any length; [`Chunk::run_sources`] runs any step range of any
+//! [`ChannelSource`]. Only [`run_recordings`] holds whole recordings, because its output is
+//! the whole estimate.
 //!
 //! # Threads
 //! Chunks are independent; rayon spreads them over its pool and each chunk runs its steps in
@@ -144,20 +151,19 @@ mod throughput;
 pub use rayon;
 
 pub use batch::{
-    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, pad_sample,
+    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, TILE_STEPS,
+    pad_sample, set_sample_lane,
 };
 pub use fleet::{
     BlockEstimates, FleetBlock, FleetError, FleetRunner, OnError, samples_with_missing_imu,
 };
 pub use recordings::{
-    ChannelOutput, Columns, Precision, flag, run_recordings, run_recordings_with, run_sources,
-    run_sources_with,
+    ChannelOutput, Columns, Estimate, EstimateSink, FinalState, INTERLEAVE_STATE_BYTES, Precision,
+    flag, interleaves, run_final_states, run_into_sinks, run_recordings, run_recordings_with,
+    run_sources, run_sources_into, run_sources_with, visit_lanes,
 };
 #[cfg(feature = "throughput")]
-pub use throughput::{
-    INTERLEAVE_STATE_BYTES, ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, interleaves,
-    sweep, throughput,
-};
+pub use throughput::{ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, sweep, throughput};
 
 /// State bytes per channel of a run-time typed batch over lanes `L` (`Batch<L>`, chunks of
 /// `AnyFilter<L>`): `size_of::<AnyFilter<L>>() / LANES`, the largest registered filter. A batch

@@ -1,10 +1,11 @@
 //! [`run_recordings`]: whole recordings as channels, what the CLI calls.
 
-use crate::batch::{Batch, ChannelSource, RejectionTotals};
+use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch};
 use rayon::prelude::*;
 use rootfuse_attitude::filters::SampleFlags;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
 use rootfuse_attitude::{Lane, Mat, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_lane::X2;
 use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// Arithmetic precision of a batch run.
@@ -81,6 +82,29 @@ pub struct ChannelOutput {
     pub rejections: RejectionTotals,
 }
 
+/// Bytes of the register file for 256-bit vectors (32 `ymm` registers with AVX-512VL, 16
+/// without): the budget under which a filter's lane state is small enough to run two chunks
+/// interleaved ([`X2`](rootfuse_lane::X2)) without spilling.
+pub const INTERLEAVE_STATE_BYTES: usize = 1024;
+
+/// Whether the batch engine runs `spec` as [`X2`](rootfuse_lane::X2) (two chunks interleaved per dependency
+/// chain) rather than one vector: when its state over `L` fits [`INTERLEAVE_STATE_BYTES`].
+///
+/// Small filters (gyro, complementary, Mahony, Madgwick) are latency bound: one update is a
+/// chain of dependent square roots, divisions and products, so a second independent chain in
+/// the same instructions nearly doubles throughput. Large ones (the EKFs, the flagship) are
+/// bound by arithmetic and registers already; interleaving them spills and slows them down.
+pub fn interleaves<L: Lane>(spec: &FilterSpec) -> bool {
+    struct Size;
+    impl<L: Lane> FilterVisitor<L> for Size {
+        type Output = usize;
+        fn visit<F: RegisteredFilter<L>>(self, _: &FilterSpec) -> usize {
+            core::mem::size_of::<F>()
+        }
+    }
+    spec.visit::<L, _>(Size) <= INTERLEAVE_STATE_BYTES
+}
+
 /// Runs every recording as one channel (lanes of `f32x8` or `f64x4`), recordings of different
 /// lengths and rates allowed; chunks spread over threads with rayon; result independent of
 /// thread count.
@@ -137,9 +161,117 @@ pub fn run_recordings_with(
     precision: Precision,
     columns: Columns,
 ) -> Vec<ChannelOutput> {
+    let mut out: Vec<ChannelOutput> = recs
+        .iter()
+        .map(|r| ChannelOutput::with_capacity(r.len(), columns))
+        .collect();
+    run_into_sinks(spec, precision, recs, &mut out, columns);
+    out
+}
+
+/// Runs `sources` (channel `i` into `sinks[i]`) on the engine's lanes for `precision`
+/// ([`visit_lanes`]): [`run_sources_into`] with the lane type chosen as
+/// [`run_recordings`] chooses it. Each channel's estimates equal a scalar run of it in that
+/// precision, bit for bit.
+pub fn run_into_sinks<S: ChannelSource, K: EstimateSink>(
+    spec: &FilterSpec,
+    precision: Precision,
+    sources: &[S],
+    sinks: &mut [K],
+    columns: Columns,
+) {
+    visit_lanes(
+        spec,
+        precision,
+        IntoSinks {
+            sources,
+            sinks,
+            columns,
+        },
+    );
+}
+
+/// Visits `spec` with the engine's lanes for `precision`: `f32x8` or `f64x4`, as two vectors
+/// interleaved ([`X2`]) for the small filters that gain from it ([`interleaves`]); the
+/// results are the same bits either way. What [`run_recordings`] and [`run_final_states`]
+/// run on, for callers with a [`FilterVisitor`] of their own.
+pub fn visit_lanes<V>(
+    spec: &FilterSpec,
+    precision: Precision,
+    visitor: V,
+) -> <V as FilterVisitor<f64x4>>::Output
+where
+    V: FilterVisitor<f64x4>
+        + FilterVisitor<X2<f64x4>, Output = <V as FilterVisitor<f64x4>>::Output>
+        + FilterVisitor<f32x8, Output = <V as FilterVisitor<f64x4>>::Output>
+        + FilterVisitor<X2<f32x8>, Output = <V as FilterVisitor<f64x4>>::Output>,
+{
     match precision {
-        Precision::F32 => run_sources_with::<f32x8, _>(spec, recs, columns),
-        Precision::F64 => run_sources_with::<f64x4, _>(spec, recs, columns),
+        Precision::F32 if interleaves::<f32x8>(spec) => spec.visit::<X2<f32x8>, _>(visitor),
+        Precision::F32 => spec.visit::<f32x8, _>(visitor),
+        Precision::F64 if interleaves::<f64x4>(spec) => spec.visit::<X2<f64x4>, _>(visitor),
+        Precision::F64 => spec.visit::<f64x4, _>(visitor),
+    }
+}
+
+/// One channel's state after its last sample (see [`run_final_states`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FinalState {
+    /// Orientation, sensor to earth (ENU).
+    pub quat: Quat<f64>,
+    /// Gyro-bias estimate, rad/s (zero for filters without one).
+    pub bias: Vec3<f64>,
+    /// What the filter skipped over the whole channel, by reason.
+    pub rejections: RejectionTotals,
+}
+
+/// Runs channel `i` of `sources` with `specs[i]` through the batch engine and keeps only
+/// each channel's final state: no series is collected, so the engine runs at the rate of its
+/// filters and of reading the input. Channels may differ in any parameter: those that agree
+/// on the structural ones share chunks, each lane with its own parameters
+/// ([`Batch::with_channel_specs`]); lanes by [`visit_lanes`]. Each channel equals a scalar
+/// run with its own spec, bit for bit. An error names the first channel whose spec is of
+/// another filter than `specs[0]`'s.
+///
+/// ```
+/// use rootfuse_attitude::registry::FilterSpec;
+/// use rootfuse_batch::{Precision, run_final_states, run_recordings};
+/// use rootfuse_eval::sim::scenario;
+///
+/// let spec = FilterSpec::new("mahony").unwrap();
+/// let recs = vec![scenario("slow-rotation", 3, 2.0, 100.0).unwrap(); 3];
+/// let last = run_final_states(&vec![spec.clone(); 3], &recs, Precision::F32).unwrap();
+/// let series = run_recordings(&spec, &recs, Precision::F32);
+/// assert_eq!(last[2].quat, *series[2].quat.last().unwrap());
+/// ```
+pub fn run_final_states<S: ChannelSource>(
+    specs: &[FilterSpec],
+    sources: &[S],
+    precision: Precision,
+) -> Result<Vec<FinalState>, SpecMismatch> {
+    match specs.first() {
+        None => Ok(Vec::new()),
+        Some(first) => visit_lanes(first, precision, FinalStates { specs, sources }),
+    }
+}
+
+struct FinalStates<'a, S> {
+    specs: &'a [FilterSpec],
+    sources: &'a [S],
+}
+
+impl<L: Lane, S: ChannelSource> FilterVisitor<L> for FinalStates<'_, S> {
+    type Output = Result<Vec<FinalState>, SpecMismatch>;
+    fn visit<F: RegisteredFilter<L>>(self, _: &FilterSpec) -> Self::Output {
+        let mut batch = Batch::<L, F>::with_channel_specs(self.specs)?;
+        batch.run_channels(self.sources);
+        Ok((0..self.specs.len().min(batch.channels()))
+            .map(|c| FinalState {
+                quat: batch.quat(c),
+                bias: batch.bias(c),
+                rejections: batch.rejections(c),
+            })
+            .collect())
     }
 }
 
@@ -159,66 +291,150 @@ pub fn run_sources_with<L: Lane, S: ChannelSource>(
 ) -> Vec<ChannelOutput> {
     // One dispatch to the concrete filter type: chunks hold only that filter's state and
     // nothing is matched per sample.
-    spec.visit::<L, _>(RunSources { sources, columns })
+    let mut out: Vec<ChannelOutput> = sources
+        .iter()
+        .map(|s| ChannelOutput::with_capacity(s.len(), columns))
+        .collect();
+    run_sources_into::<L, S, ChannelOutput>(spec, sources, &mut out, columns);
+    out
 }
 
-struct RunSources<'a, S> {
-    sources: &'a [S],
-    columns: Columns,
-}
-
-impl<L: Lane, S: ChannelSource> FilterVisitor<L> for RunSources<'_, S> {
-    type Output = Vec<ChannelOutput>;
-    fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) -> Vec<ChannelOutput> {
-        run_typed::<L, F, S>(spec, self.sources, self.columns)
+impl ChannelOutput {
+    /// Empty series with room for `len` samples of the `columns` collected.
+    fn with_capacity(len: usize, columns: Columns) -> Self {
+        let capacity = |on: bool| if on { len } else { 0 };
+        Self {
+            quat: Vec::with_capacity(len),
+            bias: Vec::with_capacity(capacity(columns.bias)),
+            covariance: Vec::with_capacity(capacity(columns.covariance)),
+            flags: Vec::with_capacity(capacity(columns.flags)),
+            rejections: RejectionTotals::default(),
+        }
     }
 }
 
-fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource>(
+/// Where [`run_sources_into`] puts one channel's estimates, sample by sample.
+///
+/// [`ChannelOutput`] collects them into vectors; a caller with its own storage (the Python
+/// package writes straight into NumPy arrays allocated once) implements this to receive
+/// them in place. Each channel's sink is called from one thread, in sample order.
+pub trait EstimateSink: Send {
+    /// The estimates after sample `k` of the channel: orientation (sensor to earth, ENU),
+    /// and, as [`Columns`] asked (`None` otherwise, or for a filter without a covariance),
+    /// the gyro bias (rad/s), the attitude-error covariance `[xx, xy, xz, yy, yz, zz]` (rad²)
+    /// and the [`flag`] bits.
+    fn push(&mut self, k: usize, estimate: &Estimate);
+    /// The channel's counters once its last sample has run.
+    fn finish(&mut self, rejections: RejectionTotals);
+}
+
+/// One channel's estimates after one sample, in `f64` (see [`EstimateSink::push`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Orientation, sensor to earth (ENU).
+    pub quat: Quat<f64>,
+    /// Gyro-bias estimate, rad/s, when collected.
+    pub bias: Option<Vec3<f64>>,
+    /// Attitude-error covariance `[xx, xy, xz, yy, yz, zz]`, rad², when collected and the
+    /// filter carries one.
+    pub covariance: Option<[f64; 6]>,
+    /// [`flag`] bits of what the filter skipped, when collected.
+    pub flags: Option<u8>,
+}
+
+impl EstimateSink for ChannelOutput {
+    fn push(&mut self, _k: usize, e: &Estimate) {
+        self.quat.push(e.quat);
+        self.bias.extend(e.bias);
+        self.covariance.extend(e.covariance);
+        self.flags.extend(e.flags);
+    }
+    fn finish(&mut self, rejections: RejectionTotals) {
+        self.rejections = rejections;
+    }
+}
+
+/// Runs `sources` (channel `i` into `sinks[i]`; the shorter of the two sets the count) on
+/// lanes `L`, the concrete filter type of `spec`, chunks spread over threads with rayon:
+/// [`run_sources_with`] with the estimates handed to the caller's sinks as they come
+/// instead of collected. Each channel's estimates equal a scalar run of it, bit for bit.
+///
+/// ```
+/// use rootfuse_attitude::registry::FilterSpec;
+/// use rootfuse_batch::{Columns, Estimate, EstimateSink, RejectionTotals, run_sources_into};
+/// use rootfuse_eval::sim::scenario;
+/// use rootfuse_lane::wide::f64x4;
+///
+/// /// Keeps the last orientation only.
+/// #[derive(Default)]
+/// struct Last(Option<Estimate>, RejectionTotals);
+/// impl EstimateSink for Last {
+///     fn push(&mut self, _k: usize, e: &Estimate) { self.0 = Some(*e); }
+///     fn finish(&mut self, r: RejectionTotals) { self.1 = r; }
+/// }
+/// let spec = FilterSpec::new("mahony").unwrap();
+/// let recs = vec![scenario("static", 1, 1.0, 100.0).unwrap(); 3];
+/// let mut sinks: Vec<Last> = (0..3).map(|_| Last::default()).collect();
+/// run_sources_into::<f64x4, _, _>(&spec, &recs, &mut sinks, Columns::default());
+/// assert!(sinks.iter().all(|s| s.0.is_some() && s.1.dt == 0));
+/// ```
+pub fn run_sources_into<L: Lane, S: ChannelSource, K: EstimateSink>(
     spec: &FilterSpec,
     sources: &[S],
+    sinks: &mut [K],
     columns: Columns,
-) -> Vec<ChannelOutput> {
-    let mut batch = Batch::<L, F>::for_visited_spec(spec, sources.len());
-    let capacity = |on: bool, len: usize| if on { len } else { 0 };
-    let mut out: Vec<ChannelOutput> = sources
-        .iter()
-        .map(|s| ChannelOutput {
-            quat: Vec::with_capacity(s.len()),
-            bias: Vec::with_capacity(capacity(columns.bias, s.len())),
-            covariance: Vec::with_capacity(capacity(columns.covariance, s.len())),
-            flags: Vec::with_capacity(capacity(columns.flags, s.len())),
-            rejections: RejectionTotals::default(),
-        })
-        .collect();
+) {
+    spec.visit::<L, _>(IntoSinks {
+        sources,
+        sinks,
+        columns,
+    });
+}
+
+struct IntoSinks<'a, S, K> {
+    sources: &'a [S],
+    sinks: &'a mut [K],
+    columns: Columns,
+}
+
+impl<L: Lane, S: ChannelSource, K: EstimateSink> FilterVisitor<L> for IntoSinks<'_, S, K> {
+    type Output = ();
+    fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) {
+        run_typed::<L, F, S, K>(spec, self.sources, self.sinks, self.columns);
+    }
+}
+
+fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource, K: EstimateSink>(
+    spec: &FilterSpec,
+    sources: &[S],
+    sinks: &mut [K],
+    columns: Columns,
+) {
+    let count = sources.len().min(sinks.len());
+    let (sources, sinks) = (&sources[..count], &mut sinks[..count]);
+    let mut batch = Batch::<L, F>::for_visited_spec(spec, count);
     batch
         .chunks_mut()
         .par_iter_mut()
         .zip(
             sources
                 .par_chunks(L::LANES)
-                .zip(out.par_chunks_mut(L::LANES)),
+                .zip(sinks.par_chunks_mut(L::LANES)),
         )
         .for_each(|(chunk, (srcs, outs))| {
             let steps = srcs.iter().map(|s| s.len()).max().unwrap_or(0);
-            chunk.run_sources(srcs, 0..steps, |_, chunk, active| {
-                let view = StepEstimates::lanes(chunk.filter(), columns);
+            chunk.run_sources(srcs, 0..steps, |k, chunk, active| {
+                let view = Estimate::lanes(chunk.filter(), columns);
                 for (i, o) in outs.iter_mut().enumerate() {
-                    if (active >> i) & 1 == 0 {
-                        continue;
+                    if (active >> i) & 1 == 1 {
+                        o.push(k, &view.lane(i));
                     }
-                    let step = view.lane(i);
-                    o.quat.push(step.quat);
-                    o.bias.extend(step.bias);
-                    o.covariance.extend(step.covariance);
-                    o.flags.extend(step.flags);
                 }
             });
             for (i, o) in outs.iter_mut().enumerate() {
-                o.rejections = chunk.rejections(i);
+                o.finish(chunk.rejections(i));
             }
         });
-    out
 }
 
 /// One step's estimates of every lane of a chunk, read lane by lane ([`StepLanes::lane`]).
@@ -229,16 +445,7 @@ pub(crate) struct StepLanes<L: Lane> {
     flags: Option<SampleFlags<L>>,
 }
 
-/// One lane's estimates after one step, in `f64`; `None` for a series not collected.
-#[derive(Clone, Copy)]
-pub(crate) struct StepEstimates {
-    pub quat: Quat<f64>,
-    pub bias: Option<Vec3<f64>>,
-    pub covariance: Option<[f64; 6]>,
-    pub flags: Option<u8>,
-}
-
-impl StepEstimates {
+impl Estimate {
     /// The series of `columns` of every lane of `filter`, as they are after its last update.
     pub(crate) fn lanes<L: Lane, F: OrientationFilter<L>>(
         filter: &F,
@@ -259,9 +466,9 @@ impl StepEstimates {
 
 impl<L: Lane> StepLanes<L> {
     /// Lane `i`'s estimates.
-    pub(crate) fn lane(&self, i: usize) -> StepEstimates {
+    pub(crate) fn lane(&self, i: usize) -> Estimate {
         let q = self.quat.lane(i);
-        StepEstimates {
+        Estimate {
             quat: Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()),
             bias: self.bias.map(|b| {
                 let b = b.lane(i);

@@ -1,5 +1,6 @@
 //! [`throughput`]: scalar loops against lanes against lanes on all cores, in one run.
 
+use crate::interleaves;
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
@@ -242,29 +243,6 @@ impl<L: Lane> FilterVisitor<L> for Lanes<'_> {
         }
         start.elapsed().as_secs_f64()
     }
-}
-
-/// Bytes of the register file for 256-bit vectors (32 `ymm` registers with AVX-512VL, 16
-/// without): the budget under which a filter's lane state is small enough to run two chunks
-/// interleaved ([`X2`]) without spilling.
-pub const INTERLEAVE_STATE_BYTES: usize = 1024;
-
-/// Whether the batch engine runs `spec` as [`X2`] (two chunks interleaved per dependency
-/// chain) rather than one vector: when its state over `L` fits [`INTERLEAVE_STATE_BYTES`].
-///
-/// Small filters (gyro, complementary, Mahony, Madgwick) are latency bound: one update is a
-/// chain of dependent square roots, divisions and products, so a second independent chain in
-/// the same instructions nearly doubles throughput. Large ones (the EKFs, the flagship) are
-/// bound by arithmetic and registers already; interleaving them spills and slows them down.
-pub fn interleaves<L: Lane>(spec: &FilterSpec) -> bool {
-    struct Size;
-    impl<L: Lane> FilterVisitor<L> for Size {
-        type Output = usize;
-        fn visit<F: RegisteredFilter<L>>(self, _: &FilterSpec) -> usize {
-            core::mem::size_of::<F>()
-        }
-    }
-    spec.visit::<L, _>(Size) <= INTERLEAVE_STATE_BYTES
 }
 
 /// One lane mode: `L` or `X2<L>` by [`interleaves`], concrete filter type by

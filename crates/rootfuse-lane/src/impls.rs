@@ -49,6 +49,12 @@ macro_rules! simd_lane {
                 self.to_array()[lane]
             }
             #[inline]
+            fn set_lane(&mut self, lane: usize, x: $s) {
+                if let Some(v) = self.as_mut_array().get_mut(lane) {
+                    *v = x;
+                }
+            }
+            #[inline]
             fn sqrt(self) -> Self {
                 $t::sqrt(self)
             }
@@ -176,6 +182,12 @@ macro_rules! scalar_lane {
             fn extract(self, lane: usize) -> $s {
                 assert!(lane == 0, "lane {lane} out of range for a scalar");
                 self
+            }
+            #[inline]
+            fn set_lane(&mut self, lane: usize, x: $s) {
+                if lane == 0 {
+                    *self = x;
+                }
             }
             #[inline]
             fn sqrt(self) -> Self {

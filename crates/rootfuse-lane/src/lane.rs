@@ -164,6 +164,17 @@ pub trait Lane:
     fn from_fn(f: impl FnMut(usize) -> Self::Scalar) -> Self;
     /// Lane `i` (panics if `i >= LANES`).
     fn extract(self, lane: usize) -> Self::Scalar;
+    /// Sets lane `lane` to `x` in place, leaving the others (a lane `>= LANES` is ignored).
+    /// One scalar store into the vector's memory: how the batch engine packs struct-of-arrays
+    /// tiles channel by channel without building whole vectors from scattered scalars.
+    ///
+    /// ```
+    /// use rootfuse_lane::{Lane, wide::f32x8};
+    /// let mut v = f32x8::splat(1.0);
+    /// v.set_lane(3, 5.0);
+    /// assert_eq!((v.extract(2), v.extract(3)), (1.0, 5.0));
+    /// ```
+    fn set_lane(&mut self, lane: usize, x: Self::Scalar);
     /// `0` in every lane.
     #[inline]
     fn zero() -> Self {

@@ -115,6 +115,12 @@ macro_rules! x2_lane {
             fn extract(self, lane: usize) -> $s {
                 self.0[lane / $n].to_array()[lane % $n]
             }
+            #[inline]
+            fn set_lane(&mut self, lane: usize, x: $s) {
+                if let Some(v) = self.0.get_mut(lane / $n) {
+                    v.set_lane(lane % $n, x);
+                }
+            }
             #[inline(always)]
             fn sqrt(self) -> Self {
                 X2([self.0[0].sqrt(), self.0[1].sqrt()])
