@@ -1,7 +1,7 @@
 //! [`FleetRunner`]: a fleet of devices streamed through the batch engine in blocks of rows.
 
-use crate::batch::{Batch, ChannelSource, RejectionTotals};
-use crate::recordings::{Columns, Precision, StepEstimates};
+use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch};
+use crate::recordings::{Columns, Estimate, Precision};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
 use rootfuse_attitude::{ImuSample, Lane, Quat, Vec3};
@@ -210,18 +210,65 @@ pub struct FleetRunner {
 impl FleetRunner {
     /// An empty fleet of filters of `spec`; devices are added as their rows come.
     pub fn new(spec: &FilterSpec, precision: Precision, columns: Columns) -> Self {
+        // No device has a spec of its own, so no spec can mismatch.
+        Self::with_device_specs(spec, &[], precision, columns).unwrap_or_else(|_| {
+            unreachable!("a fleet without per-device specs has no spec to refuse")
+        })
+    }
+
+    /// A fleet whose devices `0 .. device_specs.len()` run with their own parameters
+    /// (`device_specs[d]`, for example from a per-device calibration table) and later devices
+    /// with `spec`.
+    ///
+    /// The devices with their own specs are planned into chunks before any row comes:
+    /// devices whose specs agree on the structural parameters
+    /// ([`FilterSpec::same_structure`]: `dof`, switches, window lengths, screening limits)
+    /// share chunks, each lane with its own real-valued parameters, so every device's
+    /// estimates equal a scalar run with its own spec bit for bit. A planned device that never
+    /// gets a row only leaves its lane idle. An error names the first device whose spec is of
+    /// another filter than `spec`.
+    ///
+    /// ```
+    /// use rootfuse_attitude::registry::FilterSpec;
+    /// use rootfuse_attitude::Vec3;
+    /// use rootfuse_batch::{Columns, FleetBlock, FleetRunner, OnError, Precision};
+    ///
+    /// let spec = FilterSpec::new("mahony").unwrap();
+    /// let mut stiff = spec.clone();
+    /// stiff.set("kp=2.0").unwrap();
+    /// // Device 0 with a stiffer gain, device 1 (not planned) with the defaults.
+    /// let mut fleet =
+    ///     FleetRunner::with_device_specs(&spec, &[stiff], Precision::F64, Columns::default())
+    ///         .unwrap();
+    /// let block = FleetBlock {
+    ///     device: vec![0, 1, 0, 1],
+    ///     t: vec![0.0, 0.0, 0.01, 0.01],
+    ///     gyr: vec![Vec3::zero(); 4],
+    ///     acc: vec![Vec3::new(0.0, 3.0, 9.3); 4],
+    ///     mag: None,
+    /// };
+    /// let est = fleet.step(&block, None, OnError::Stop).unwrap();
+    /// assert_ne!(est.quat[2], est.quat[3]); // the stiffer gain has moved further
+    /// ```
+    pub fn with_device_specs(
+        spec: &FilterSpec,
+        device_specs: &[FilterSpec],
+        precision: Precision,
+        columns: Columns,
+    ) -> Result<Self, SpecMismatch> {
+        let make = MakeEngine { device_specs };
         let engine = match precision {
-            Precision::F32 => spec.visit::<f32x8, _>(MakeEngine),
-            Precision::F64 => spec.visit::<f64x4, _>(MakeEngine),
-        };
-        Self {
+            Precision::F32 => spec.visit::<f32x8, _>(make),
+            Precision::F64 => spec.visit::<f64x4, _>(make),
+        }?;
+        Ok(Self {
             engine,
             columns,
             last_t: Vec::new(),
             failed: Vec::new(),
             groups: Vec::new(),
             before: Vec::new(),
-        }
+        })
     }
 
     /// Number of devices seen so far.
@@ -400,44 +447,104 @@ trait FleetEngine: Send {
     fn has_covariance(&self) -> bool;
 }
 
-struct MakeEngine;
+struct MakeEngine<'a> {
+    device_specs: &'a [FilterSpec],
+}
 
-impl<L: Lane> FilterVisitor<L> for MakeEngine
+impl<L: Lane> FilterVisitor<L> for MakeEngine<'_>
 where
     L::Scalar: Lane,
 {
-    type Output = Box<dyn FleetEngine>;
-    fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) -> Box<dyn FleetEngine> {
-        Box::new(TypedFleet::<L, F> {
+    type Output = Result<Box<dyn FleetEngine>, SpecMismatch>;
+    fn visit<F: RegisteredFilter<L>>(self, spec: &FilterSpec) -> Self::Output {
+        let mut fleet = TypedFleet::<L, F> {
             spec: spec.clone(),
             batches: Vec::new(),
+            slot: Vec::new(),
+            open: None,
             rows: Vec::new(),
-        })
+        };
+        fleet.plan(self.device_specs)?;
+        Ok(Box::new(fleet))
     }
 }
 
-/// One [`Batch`] of `LANES` channels per `LANES` devices, added as devices come.
+/// One [`Batch`] of `LANES` channels per chunk of devices: planned devices (with specs of
+/// their own) in chunks of their structural class, the others added as they come.
 struct TypedFleet<L: Lane, F> {
     spec: FilterSpec,
     batches: Vec<Batch<L, F>>,
+    /// Device `d` runs in lane `slot[d] % LANES` of batch `slot[d] / LANES`.
+    slot: Vec<usize>,
+    /// The batch of `spec` with free lanes for devices not planned, and its next free lane.
+    open: Option<(usize, usize)>,
     /// The estimates of the block being run, chunk after chunk. Kept from block to block
     /// (as long as the longest block): fresh buffers for every block had the kernel map and
     /// clear their pages again each time, about a sixth of a Mahony fleet run.
     rows: Vec<RowEstimate>,
 }
 
+impl<L: Lane, F: RegisteredFilter<L>> TypedFleet<L, F> {
+    /// Chunks for the devices with specs of their own, by structural class in order of first
+    /// appearance; device `d`'s lane parameters are those of `specs[d]`.
+    fn plan(&mut self, specs: &[FilterSpec]) -> Result<(), SpecMismatch> {
+        if let Some(d) = specs.iter().position(|s| s.kind() != self.spec.kind()) {
+            return Err(SpecMismatch { channel: d });
+        }
+        self.slot = vec![0; specs.len()];
+        let mut classes: Vec<Vec<usize>> = Vec::new();
+        for (d, s) in specs.iter().enumerate() {
+            match classes.iter_mut().find(|c| specs[c[0]].same_structure(s)) {
+                Some(c) => c.push(d),
+                None => classes.push(vec![d]),
+            }
+        }
+        for members in classes {
+            for lanes in members.chunks(L::LANES) {
+                let lane_specs: Vec<FilterSpec> = lanes.iter().map(|&d| specs[d].clone()).collect();
+                let batch =
+                    Batch::<L, F>::with_channel_specs(&lane_specs).map_err(|e| SpecMismatch {
+                        channel: lanes[e.channel],
+                    })?;
+                for (lane, &d) in lanes.iter().enumerate() {
+                    self.slot[d] = self.batches.len() * L::LANES + lane;
+                }
+                self.batches.push(batch);
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives the devices up to `devices` (exclusive) that have none a lane of `spec`.
+    fn place(&mut self, devices: usize) {
+        while self.slot.len() < devices {
+            let (b, lane) = match self.open {
+                Some((b, lane)) if lane < L::LANES => (b, lane),
+                _ => {
+                    // `MakeEngine` was visited with the spec's own filter type.
+                    self.batches
+                        .push(Batch::<L, F>::for_visited_spec(&self.spec, L::LANES));
+                    (self.batches.len() - 1, 0)
+                }
+            };
+            self.slot.push(b * L::LANES + lane);
+            self.open = Some((b, lane + 1));
+        }
+    }
+}
+
 /// The estimate of one row, computed in a chunk and scattered into the block's estimates.
 #[derive(Clone, Copy)]
 struct RowEstimate {
     row: u32,
-    step: StepEstimates,
+    step: Estimate,
 }
 
 impl RowEstimate {
     /// A slot not yet written.
     const UNSET: Self = Self {
         row: u32::MAX,
-        step: StepEstimates {
+        step: Estimate {
             quat: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
             bias: None,
             covariance: None,
@@ -448,11 +555,21 @@ impl RowEstimate {
 
 impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
     fn run(&mut self, sources: &[DeviceRows], columns: Columns, est: &mut BlockEstimates) {
-        while self.batches.len() * L::LANES < sources.len() {
-            // `MakeEngine` was visited with the spec's own filter type.
-            self.batches
-                .push(Batch::<L, F>::for_visited_spec(&self.spec, L::LANES));
+        self.place(sources.len());
+        // The devices in lane order, an empty source for a lane without a device here.
+        let Some(first) = sources.first() else {
+            return;
+        };
+        let idle = DeviceRows {
+            block: first.block,
+            rows: &[],
+            first_dt: 0.0,
+        };
+        let mut by_slot: Vec<&DeviceRows> = vec![&idle; self.batches.len() * L::LANES];
+        for (d, src) in sources.iter().enumerate() {
+            by_slot[self.slot[d]] = src;
         }
+        let sources = by_slot;
         // Each chunk writes its rows' estimates into its own part of `rows`: a chunk's lane
         // is active at step `k` exactly when its device has a `k`-th row, so a chunk fills
         // as many slots as its devices have rows.
@@ -478,7 +595,7 @@ impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
                 let mut slots = part.iter_mut();
                 let chunk = &mut batch.chunks_mut()[0];
                 chunk.run_sources(srcs, 0..steps, |k, chunk, active| {
-                    let view = StepEstimates::lanes(chunk.filter(), columns);
+                    let view = Estimate::lanes(chunk.filter(), columns);
                     for (i, src) in srcs.iter().enumerate() {
                         if (active >> i) & 1 == 1
                             && let Some(slot) = slots.next()
@@ -508,9 +625,12 @@ impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
     }
 
     fn rejections(&self, d: usize) -> RejectionTotals {
+        let Some(&slot) = self.slot.get(d) else {
+            return RejectionTotals::default();
+        };
         self.batches
-            .get(d / L::LANES)
-            .map_or_else(RejectionTotals::default, |b| b.rejections(d % L::LANES))
+            .get(slot / L::LANES)
+            .map_or_else(RejectionTotals::default, |b| b.rejections(slot % L::LANES))
     }
 
     fn state_bytes_per_channel(&self) -> usize {

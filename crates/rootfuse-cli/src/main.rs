@@ -21,6 +21,7 @@ use std::process::ExitCode;
 
 mod calibrate;
 mod demo;
+mod device_params;
 mod engine;
 mod eval;
 mod filter_args;

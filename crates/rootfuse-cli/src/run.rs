@@ -72,6 +72,14 @@ pub struct RunArgs {
     /// `--flags`.
     #[arg(long)]
     strict: bool,
+    /// Per-device parameters: a CSV, Parquet or Arrow table with a `device` column (as the
+    /// fleet names its devices; a CSV recording is the device named after its file stem),
+    /// then one column per parameter (an empty cell keeps the run's value). Listed devices
+    /// run with their own parameters over `--param`; the others with the run's. Devices
+    /// that share the structural parameters (`dof`, `max_dt`, `max_gyr`, switches) share
+    /// SIMD chunks; each device equals its own scalar run bit for bit.
+    #[arg(long, value_name = "FILE")]
+    device_params: Option<PathBuf>,
     /// Apply a calibration file written by `rootfuse calibrate` to the raw readings before
     /// filtering (`y_cal = S·(y_raw − h)` per sensor in the file).
     #[arg(long)]
@@ -143,7 +151,16 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         .as_deref()
         .map(crate::calibrate::read_calibration)
         .transpose()?;
+    let device_specs = args
+        .device_params
+        .as_deref()
+        .map(|p| crate::device_params::DeviceSpecs::read(p, &spec))
+        .transpose()?;
+    if device_specs.is_some() && args.offline {
+        return Err("--device-params runs fleets and CSV recordings online; --offline smooths each file with the run's parameters".into());
+    }
     let job = Job {
+        device_specs: device_specs.as_ref(),
         spec: &spec,
         precision: args.precision.into(),
         columns: Columns {
@@ -362,7 +379,7 @@ fn smooth_files(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals
             }
             write_estimates(out, &rec.t, &smoothed.quat, &[]).map_err(|e| e.to_string())?;
             let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
-            crate::stream::add(&mut totals.rejections, r);
+            totals.rejections += r;
             totals.missing(samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64);
             totals.samples += rec.len() as u64;
             Ok(())

@@ -8,12 +8,10 @@
 use crate::run::{exit_interrupted, interrupted};
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_batch::{
-    BlockEstimates, Columns, FleetBlock, FleetRunner, OnError, Precision, RejectionTotals,
-};
+use rootfuse_batch::{Columns, FleetBlock, FleetRunner, OnError, Precision, RejectionTotals};
 use rootfuse_columnar::{
-    BLOCK_ROWS, ColumnarError, Devices, EstimateWriter, FleetChunk, FleetReader, Format, ImuGaps,
-    Part, estimate_names,
+    BLOCK_ROWS, ColumnarError, Devices, EstimateWriter, FleetBlocks, FleetChunk, FleetReader,
+    Format, ImuGaps, Part, estimate_names,
 };
 use rootfuse_io::CsvBlocks;
 use std::path::{Path, PathBuf};
@@ -31,6 +29,8 @@ pub struct Job<'a> {
     pub dof_explicit: bool,
     /// `--calibration`: applied to every block of raw readings before the filter sees it.
     pub calibration: Option<&'a crate::calibrate::CalibrationSet>,
+    /// `--device-params`: the devices with parameters of their own.
+    pub device_specs: Option<&'a crate::device_params::DeviceSpecs>,
 }
 
 impl Job<'_> {
@@ -73,15 +73,6 @@ impl Totals {
     }
 }
 
-pub fn add(totals: &mut RejectionTotals, r: RejectionTotals) {
-    totals.dt += r.dt;
-    totals.gyr += r.gyr;
-    totals.acc += r.acc;
-    totals.mag += r.mag;
-    totals.gated += r.gated;
-    totals.mag_disturbed += r.mag_disturbed;
-}
-
 /// Refuses (explicit 9D) or notes (the filter's default) a file without magnetometer columns.
 pub fn check_mag(job: &Job, file: &Path, has_mag: bool) -> Result<(), String> {
     if job.nine_d && !has_mag {
@@ -111,7 +102,40 @@ struct CsvInput {
 /// Streams CSV recordings side by side, `files[i]` estimated into `outs[i]`.
 pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
     let mut totals = Totals::default();
-    let mut runner = FleetRunner::new(job.spec, job.precision, job.columns);
+    // File `i` is device `i`, named after its stem: with `--device-params` every file gets
+    // its spec up front (the table's, or the run's).
+    let file_specs: Vec<FilterSpec> = match job.device_specs {
+        Some(table) => files
+            .iter()
+            .map(|f| {
+                let stem = f
+                    .file_stem()
+                    .map(|s| s.to_string_lossy())
+                    .unwrap_or_default();
+                table.get(&stem).unwrap_or(job.spec).clone()
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    if let Some(table) = job.device_specs {
+        let stems: Vec<String> = files
+            .iter()
+            .map(|f| {
+                f.file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default()
+            })
+            .collect();
+        let unseen: Vec<&str> = table
+            .labels
+            .iter()
+            .filter(|l| !stems.contains(l))
+            .map(String::as_str)
+            .collect();
+        let listed = stems.iter().filter(|s| table.get(s).is_some()).count();
+        table.report(files.len() - listed, &unseen);
+    }
+    let mut runner = fleet_runner(job, &file_specs)?;
     let names = estimate_names(job.columns, runner_has_covariance(job));
     // A block of all files together stays about BLOCK_ROWS rows (at least 2 per file, so
     // that every file's first step is known from its first block).
@@ -191,7 +215,7 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
                 Ok(false) => {
                     input.writer.finish().map_err(|e| e.to_string())?;
                     totals.files += 1;
-                    add(&mut totals.rejections, runner.rejections(input.device));
+                    totals.rejections += runner.rejections(input.device);
                     totals.missing(input.missing_imu);
                 }
                 Err(e) => totals.fail(e, job.keep_going)?,
@@ -246,9 +270,19 @@ fn csv_block(inputs: &[CsvInput]) -> (FleetBlock, Vec<std::ops::Range<usize>>) {
 /// Streams Parquet/Arrow fleet files in order, `files[i]` estimated into `outs[i]`.
 pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
     let mut totals = Totals::default();
-    let mut runner = FleetRunner::new(job.spec, job.precision, job.columns);
+    let (labels, specs) = match job.device_specs {
+        Some(table) => (table.labels.as_slice(), table.specs.as_slice()),
+        None => (&[][..], &[][..]),
+    };
+    let mut runner = fleet_runner(job, specs)?;
     let names = estimate_names(job.columns, runner_has_covariance(job));
-    let mut devices = Devices::default();
+    // The table's devices are numbered first, so the runner can plan their lanes.
+    let mut devices = Devices::planned(labels).map_err(|i| {
+        format!(
+            "--device-params: device {} is listed twice",
+            labels.get(i).map_or("", String::as_str)
+        )
+    })?;
     let on_error = if job.keep_going {
         OnError::DropDevice
     } else {
@@ -282,9 +316,24 @@ pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<To
         return Err("no input could be read".into());
     }
     for d in 0..devices.len() {
-        add(&mut totals.rejections, runner.rejections(d as u32));
+        totals.rejections += runner.rejections(d as u32);
+    }
+    if let Some(table) = job.device_specs {
+        let unseen: Vec<&str> = devices.unseen().collect();
+        table.report(devices.len() - labels.len(), &unseen);
     }
     Ok(totals)
+}
+
+/// The run's fleet runner: every device with the run's spec, or the first `specs.len()`
+/// devices with their own.
+fn fleet_runner(job: &Job, specs: &[FilterSpec]) -> Result<FleetRunner, String> {
+    FleetRunner::with_device_specs(job.spec, specs, job.precision, job.columns).map_err(|e| {
+        format!(
+            "--device-params: device {} runs another filter than the run's",
+            e.channel
+        )
+    })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -303,27 +352,26 @@ fn run_fleet_file(
     check_mag(job, file, reader.has_mag())?;
     let mut writer =
         EstimateWriter::create(out, job.format, reader.device_type(), names).map_err(text)?;
-    let mut current = reader.next_chunk(devices).map_err(text)?;
-    if current.is_none() {
-        return Err(ColumnarError::Empty {
-            file: file.to_owned(),
-        }
-        .to_string());
-    }
-    while let Some(mut chunk) = current {
+    let mut blocks = FleetBlocks::new();
+    let mut any = false;
+    loop {
         if interrupted() {
             drop(writer);
             exit_interrupted();
         }
-        job.calibrate(&mut chunk.block);
-        let next = reader.next_chunk(devices).map_err(text)?;
-        let est: BlockEstimates = runner
-            .step(&chunk.block, next.as_ref().map(|c| &c.block), on_error)
-            .map_err(|e| locate(file, &chunk, devices, e))?;
+        let Some((chunk, est)) = blocks
+            .next_block(&mut reader, devices, runner, on_error, |chunk| {
+                job.calibrate(&mut chunk.block)
+            })
+            .map_err(text)?
+        else {
+            break;
+        };
+        any = true;
         for e in &est.failures {
             eprintln!(
                 "error: {} (device {} left out from this row on)",
-                locate(file, &chunk, devices, *e),
+                FleetBlocks::locate(&reader, &chunk, devices, *e),
                 devices.label(e.device())
             );
             totals.failed_devices += 1;
@@ -333,7 +381,12 @@ fn run_fleet_file(
             .map_err(text)?;
         totals.samples += est.kept.iter().filter(|&&k| k).count() as u64;
         totals.missing_imu += chunk.missing_imu as u64;
-        current = next;
+    }
+    if !any {
+        return Err(ColumnarError::Empty {
+            file: file.to_owned(),
+        }
+        .to_string());
     }
     if !reader.empty_parts().is_empty() {
         eprintln!(
@@ -349,21 +402,4 @@ fn run_fleet_file(
         );
     }
     writer.finish().map_err(text)
-}
-
-/// A fleet error of a block as a message naming the file, row group, row and device.
-fn locate(
-    file: &Path,
-    chunk: &FleetChunk,
-    devices: &Devices,
-    e: rootfuse_batch::FleetError,
-) -> String {
-    ColumnarError::Time {
-        file: file.to_owned(),
-        part: chunk.part,
-        row: chunk.first_row + e.row() as u64,
-        device: devices.label(e.device()).to_string(),
-        source: e,
-    }
-    .to_string()
 }

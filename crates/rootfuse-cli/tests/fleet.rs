@@ -534,3 +534,92 @@ fn keep_going_completes_the_other_devices_and_files() {
     assert_eq!(rows.iter().filter(|r| r.0 == 0).count(), 20);
     assert_eq!(rows.iter().filter(|r| r.0 == 1).count(), 13);
 }
+
+/// `--device-params`: each listed device runs with its own parameters (one of them a
+/// structural one, so it gets a chunk of its own) and equals the library's run of it with
+/// those parameters bit for bit; the others run with the run's; the run says how many did
+/// and lists the table's devices without rows; a bad cell names file, line and column.
+#[test]
+fn device_params_run_each_device_with_its_own() {
+    let dir = temp_dir("device_params");
+    let fleet = dir.join("fleet.parquet");
+    let (code, _, stderr) = run(&[
+        &"simulate",
+        &"--devices",
+        &"5",
+        &"--seconds",
+        &"2",
+        &"--out",
+        &fleet,
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let params = dir.join("params.csv");
+    std::fs::write(
+        &params,
+        "device,gyr_noise,max_dt\n0,0.02,\n3,,0.5\n99,0.01,\n",
+    )
+    .unwrap();
+    let with_params = |params: &Path, out: &Path| {
+        run(&[
+            &"run",
+            &fleet,
+            &"--filter",
+            &"flagship",
+            &"--device-params",
+            &params,
+            &"--out",
+            &out,
+        ])
+    };
+    let out = dir.join("out");
+    let (code, _, stderr) = with_params(&params, &out);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("2 device(s) with parameters of their own, 3 device(s) not in it"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("1 device(s) of the table had no rows: 99"),
+        "{stderr}"
+    );
+    let rows = read_parquet_estimates(&out.join("fleet.parquet"));
+    for d in 0..5u64 {
+        let mut spec = FilterSpec::new("sqrt-eskf").unwrap();
+        match d {
+            0 => spec.set("gyr_noise=0.02").unwrap(),
+            3 => spec.set("max_dt=0.5").unwrap(),
+            _ => {}
+        }
+        let rec = scenario("slow-rotation", d, 2.0, 100.0).unwrap();
+        let want = &run_recordings(&spec, &[rec], Precision::F64)[0].quat;
+        let got: Vec<[f64; 4]> = rows
+            .iter()
+            .filter(|r| r.0 == d as i64)
+            .map(|r| r.2)
+            .collect();
+        assert_eq!(got.len(), want.len(), "device {d}");
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            let same = g
+                .iter()
+                .zip(w.to_array())
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "device {d}, sample {k}: {g:?} vs {w:?}");
+        }
+    }
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "device,gyr_noise\n0,0.02\n1,fast\n").unwrap();
+    let (code, _, stderr) = with_params(&bad, &dir.join("out2"));
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("bad.csv: line 3, column `gyr_noise`: expected a number"),
+        "{stderr}"
+    );
+    let unknown = dir.join("unknown.csv");
+    std::fs::write(&unknown, "device,kp\n0,1.0\n").unwrap();
+    let (code, _, stderr) = with_params(&unknown, &dir.join("out3"));
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("unknown.csv: line 2, column `kp`"),
+        "{stderr}"
+    );
+}

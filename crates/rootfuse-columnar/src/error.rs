@@ -106,6 +106,18 @@ pub enum ColumnarError {
         #[source]
         source: rootfuse_batch::FleetError,
     },
+    /// A per-device parameter table has a bad cell ([`DeviceParams`](crate::DeviceParams)).
+    #[error("{file}: {place}column `{column}`: {problem}")]
+    Param {
+        /// The file.
+        file: PathBuf,
+        /// `line N, ` (CSV) or `row N, ` (0-based), empty for the whole file.
+        place: String,
+        /// The column (empty for the whole row or file).
+        column: String,
+        /// What is wrong.
+        problem: String,
+    },
     /// The file has no data rows.
     #[error("{file}: no data rows")]
     Empty {

@@ -34,13 +34,17 @@
 
 mod error;
 mod kind;
+mod params;
 mod reader;
 mod recordings;
+mod run;
 mod writer;
 
 pub use error::{ColumnarError, Part};
+pub use params::{DeviceParamRow, DeviceParams};
 pub use reader::{BLOCK_ROWS, Devices, FleetChunk, FleetReader, ImuGaps};
 pub use recordings::FleetFileWriter;
+pub use run::FleetBlocks;
 pub use writer::{EstimateWriter, ROW_GROUP_ROWS, estimate_names};
 
 /// The name of the device column.

@@ -3,7 +3,7 @@
 use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
 use crate::kind::{self, EndAware, Kind};
-use arrow::array::{Array, ArrayRef, AsArray, RecordBatch};
+use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, RecordBatchReader};
 use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
 use parquet::arrow::ProjectionMask;
 use parquet::arrow::arrow_reader::{
@@ -35,6 +35,8 @@ enum DeviceKey {
 pub struct Devices {
     index: HashMap<DeviceKey, u32>,
     labels: Vec<String>,
+    /// Devices named before any row ([`Devices::planned`]) and not yet seen, by label.
+    planned: HashMap<String, u32>,
     /// Device number of the integer keys `0..SMALL_KEYS` seen (`u32::MAX`: not seen): rows
     /// of many devices interleave, so the key changes from row to row and a hash lookup per
     /// row showed in profiles.
@@ -55,6 +57,42 @@ impl Devices {
         self.labels.is_empty()
     }
 
+    /// Devices known before any row is read, numbered `0..labels.len()` in the order given
+    /// (a per-device parameter table's devices: the fleet runner plans their lanes before
+    /// their rows come). A row's device matches a label by its text, an integer `7` the label
+    /// `"7"`; devices not listed are numbered from `labels.len()` on, in order of first
+    /// appearance. `None` when a label is given twice (its index is returned in `Err`).
+    ///
+    /// ```
+    /// use rootfuse_columnar::Devices;
+    /// let devices = Devices::planned(&["b".to_string(), "7".to_string()]).unwrap();
+    /// assert_eq!(devices.len(), 2);
+    /// assert_eq!(devices.unseen().collect::<Vec<_>>(), ["b", "7"]);
+    /// assert_eq!(Devices::planned(&["a".into(), "a".into()]).unwrap_err(), 1);
+    /// ```
+    pub fn planned(labels: &[String]) -> Result<Self, usize> {
+        let mut devices = Self::default();
+        for (i, label) in labels.iter().enumerate() {
+            if devices.planned.insert(label.clone(), i as u32).is_some() {
+                return Err(i);
+            }
+            devices.labels.push(label.clone());
+        }
+        Ok(devices)
+    }
+
+    /// Labels of the [`planned`](Self::planned) devices that no row has named so far, in
+    /// plan order.
+    pub fn unseen(&self) -> impl Iterator<Item = &str> {
+        let mut unseen: Vec<(u32, &str)> = self
+            .planned
+            .iter()
+            .map(|(label, &d)| (d, label.as_str()))
+            .collect();
+        unseen.sort_unstable();
+        unseen.into_iter().map(|(_, label)| label)
+    }
+
     /// Device `d` as written in its file (the file stem for a file without a device column).
     pub fn label(&self, d: u32) -> &str {
         self.labels.get(d as usize).map_or("", String::as_str)
@@ -73,17 +111,23 @@ impl Devices {
         if let Some(&d) = self.index.get(&key) {
             return d;
         }
-        let d = self.labels.len() as u32;
+        let label = match &key {
+            DeviceKey::Int(v) => v.to_string(),
+            DeviceKey::Text(s) => s.clone(),
+        };
+        let d = match self.planned.remove(&label) {
+            Some(d) => d,
+            None => {
+                self.labels.push(label);
+                (self.labels.len() - 1) as u32
+            }
+        };
         if let Some(i) = small {
             if self.small.len() <= i {
                 self.small.resize(i + 1, u32::MAX);
             }
             self.small[i] = d;
         }
-        self.labels.push(match &key {
-            DeviceKey::Int(v) => v.to_string(),
-            DeviceKey::Text(s) => s.clone(),
-        });
         self.index.insert(key, d);
         d
     }
@@ -126,6 +170,10 @@ enum Source {
     },
     IpcStream {
         reader: arrow::ipc::reader::StreamReader<EndAware<std::io::BufReader<std::fs::File>>>,
+    },
+    /// Record batches from memory or another library (an Arrow C stream from Python).
+    Batches {
+        reader: Box<dyn RecordBatchReader + Send>,
     },
 }
 
@@ -211,11 +259,27 @@ impl FleetReader {
                 (source, schema, parts, "Parquet")
             }
         };
-        let (projection, has_mag, device_type) = check_schema(path, &schema)?;
-        let mut reader = Self {
-            file: path.to_owned(),
+        Self::with_source(path.to_owned(), stem, source, name, gaps, parts, &schema)
+    }
+
+    /// A reader of `source` once its schema is checked.
+    fn with_source(
+        file: PathBuf,
+        stem: String,
+        mut source: Source,
+        format: &'static str,
+        gaps: ImuGaps,
+        parts: usize,
+        schema: &Schema,
+    ) -> Result<Self, ColumnarError> {
+        let (projection, has_mag, device_type) = check_schema(&file, schema)?;
+        if let Source::Parquet { projection: p, .. } = &mut source {
+            *p = projection;
+        }
+        Ok(Self {
+            file,
             source,
-            format: name,
+            format,
             stem,
             gaps,
             parts,
@@ -225,11 +289,57 @@ impl FleetReader {
             device_type,
             empty_parts: Vec::new(),
             pending: None,
-        };
-        if let Source::Parquet { projection: p, .. } = &mut reader.source {
-            *p = projection;
-        }
-        Ok(reader)
+        })
+    }
+
+    /// Reads the record batches of `reader` (any [`RecordBatchReader`]: batches in memory, an
+    /// Arrow C stream imported from another library) as a fleet, exactly as a file of those
+    /// batches would be read. `name` stands for the file in messages (and names the one
+    /// device of batches without a device column).
+    ///
+    /// ```
+    /// use arrow::array::{Float64Array, RecordBatch, RecordBatchIterator, UInt32Array};
+    /// use arrow::datatypes::{DataType, Field, Schema};
+    /// use rootfuse_columnar::{Devices, FleetReader, ImuGaps};
+    /// use std::sync::Arc;
+    ///
+    /// let mut fields = vec![Field::new("device", DataType::UInt32, false)];
+    /// for name in ["t", "gx", "gy", "gz", "ax", "ay", "az"] {
+    ///     fields.push(Field::new(name, DataType::Float64, false));
+    /// }
+    /// let schema = Arc::new(Schema::new(fields));
+    /// let column = |v: f64| Arc::new(Float64Array::from(vec![v; 4])) as _;
+    /// let mut columns = vec![Arc::new(UInt32Array::from(vec![7, 9, 7, 9])) as _];
+    /// columns.push(Arc::new(Float64Array::from(vec![0.0, 0.0, 0.01, 0.01])) as _);
+    /// columns.extend([0.0, 0.0, 0.0, 0.0, 0.0, 9.81].map(column));
+    /// let batch = RecordBatch::try_new(schema.clone(), columns).unwrap();
+    /// let batches = RecordBatchIterator::new([Ok(batch)], schema);
+    /// let mut reader = FleetReader::from_batches("<memory>", Box::new(batches), ImuGaps::Keep).unwrap();
+    /// let mut devices = Devices::default();
+    /// let chunk = reader.next_chunk(&mut devices).unwrap().unwrap();
+    /// assert_eq!(chunk.block.device, [0, 1, 0, 1]);
+    /// assert_eq!(devices.label(1), "9");
+    /// ```
+    pub fn from_batches(
+        name: &str,
+        reader: Box<dyn RecordBatchReader + Send>,
+        gaps: ImuGaps,
+    ) -> Result<Self, ColumnarError> {
+        let schema = reader.schema();
+        Self::with_source(
+            PathBuf::from(name),
+            name.to_string(),
+            Source::Batches { reader },
+            "Arrow",
+            gaps,
+            usize::MAX,
+            &schema,
+        )
+    }
+
+    /// The file read (the name given to [`from_batches`](Self::from_batches)).
+    pub fn path(&self) -> &Path {
+        &self.file
     }
 
     /// True when the file has magnetometer columns.
@@ -312,6 +422,20 @@ impl FleetReader {
                     Some(Err(e)) => {
                         return Err(format_error(path, "Arrow IPC stream", Some(part), e));
                     }
+                    Some(Ok(b)) => {
+                        self.part += 1;
+                        if b.num_rows() > 0 {
+                            return Ok(Some((b, part)));
+                        }
+                        self.empty_parts.push(self.part - 1);
+                    }
+                }
+            },
+            Source::Batches { reader } => loop {
+                let part = Part::RecordBatch(self.part);
+                match reader.next() {
+                    None => return Ok(None),
+                    Some(Err(e)) => return Err(format_error(path, "Arrow", Some(part), e)),
                     Some(Ok(b)) => {
                         self.part += 1;
                         if b.num_rows() > 0 {

@@ -48,10 +48,29 @@ pub fn estimate_names(columns: Columns, covariance: bool) -> Vec<&'static str> {
     names
 }
 
+/// `device` (when the input had one, of its type), then `names`: float64, `flags` uint8.
+fn estimate_schema(device: Option<&DataType>, names: &[&str]) -> SchemaRef {
+    let mut fields: Vec<Field> = Vec::new();
+    if let Some(ty) = device {
+        fields.push(Field::new(DEVICE, ty.clone(), false));
+    }
+    for &name in names {
+        let ty = if name == "flags" {
+            DataType::UInt8
+        } else {
+            DataType::Float64
+        };
+        fields.push(Field::new(name, ty, false));
+    }
+    Arc::new(Schema::new(fields))
+}
+
 enum Sink {
     Parquet(ArrowWriter<AtomicFile>),
     Arrow(arrow::ipc::writer::FileWriter<AtomicFile>),
     Csv(CsvEstimateWriter),
+    /// Record batches kept for the caller ([`EstimateWriter::take_batches`]).
+    Memory(Vec<RecordBatch>),
 }
 
 /// Estimate rows written as they come, to a temporary file renamed into place by
@@ -75,19 +94,7 @@ impl EstimateWriter {
         names: &[&str],
     ) -> Result<Self, ColumnarError> {
         let path = path.as_ref();
-        let mut fields: Vec<Field> = Vec::new();
-        if let Some(ty) = device {
-            fields.push(Field::new(DEVICE, ty.clone(), false));
-        }
-        for &name in names {
-            let ty = if name == "flags" {
-                DataType::UInt8
-            } else {
-                DataType::Float64
-            };
-            fields.push(Field::new(name, ty, false));
-        }
-        let schema = Arc::new(Schema::new(fields));
+        let schema = estimate_schema(device, names);
         let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
             file: path.to_owned(),
             message: e.to_string(),
@@ -118,6 +125,30 @@ impl EstimateWriter {
             schema,
             path: path.to_owned(),
         })
+    }
+
+    /// Estimates kept in memory as record batches (one per [`write`](Self::write)), for the
+    /// caller to take with [`take_batches`](Self::take_batches): the columns and types of the
+    /// Parquet and Arrow files. `device` and `names` as for [`create`](Self::create).
+    pub fn in_memory(device: Option<&DataType>, names: &[&str]) -> Self {
+        Self {
+            sink: Sink::Memory(Vec::new()),
+            schema: estimate_schema(device, names),
+            path: std::path::PathBuf::from("<memory>"),
+        }
+    }
+
+    /// The schema of the estimates written.
+    pub fn schema(&self) -> SchemaRef {
+        self.schema.clone()
+    }
+
+    /// The record batches written since the last call (always empty for a file).
+    pub fn take_batches(&mut self) -> Vec<RecordBatch> {
+        match &mut self.sink {
+            Sink::Memory(batches) => std::mem::take(batches),
+            _ => Vec::new(),
+        }
     }
 
     /// Writes the estimates of rows `rows` of one block (rows not
@@ -200,6 +231,10 @@ impl EstimateWriter {
         match &mut self.sink {
             Sink::Parquet(w) => w.write(&batch).map_err(|e| write_error(&e)),
             Sink::Arrow(w) => w.write(&batch).map_err(|e| write_error(&e)),
+            Sink::Memory(batches) => {
+                batches.push(batch);
+                Ok(())
+            }
             Sink::Csv(_) => Ok(()),
         }
     }
@@ -218,6 +253,7 @@ impl EstimateWriter {
                 w.finish().map_err(|e| write_error(&e))?;
                 w.into_inner().map_err(|e| write_error(&e))?.finish()?;
             }
+            Sink::Memory(_) => {}
         }
         Ok(())
     }
