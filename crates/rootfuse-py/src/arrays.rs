@@ -39,6 +39,112 @@ impl FloatArray<'_> {
     }
 }
 
+/// Sensor values as stored: float32 or float64, C order. Read with [`Floats::get`] or in
+/// runs of rows; nothing is widened into a copy.
+#[derive(Clone, Copy, Debug)]
+pub enum Floats<'a> {
+    /// float32 values.
+    F32(&'a [f32]),
+    /// float64 values.
+    F64(&'a [f64]),
+}
+
+impl Floats<'_> {
+    /// Value `i` in `f64` (exact), NaN past the end.
+    #[inline]
+    pub fn get(&self, i: usize) -> f64 {
+        match self {
+            Self::F32(v) => v.get(i).map_or(f64::NAN, |&x| f64::from(x)),
+            Self::F64(v) => v.get(i).copied().unwrap_or(f64::NAN),
+        }
+    }
+
+    /// Values `range` (clamped to the data).
+    pub fn slice(&self, range: core::ops::Range<usize>) -> Self {
+        let clamp = |len: usize| range.start.min(len)..range.end.min(len);
+        match self {
+            Self::F32(v) => Self::F32(&v[clamp(v.len())]),
+            Self::F64(v) => Self::F64(&v[clamp(v.len())]),
+        }
+    }
+}
+
+/// A float32 or float64 array of sensor values, borrowed when C-contiguous (float32 is not
+/// widened: [`Floats`]), otherwise copied in C order in its own precision.
+pub struct SensorArray<'py> {
+    data: SensorData<'py>,
+    /// The shape.
+    pub shape: Vec<usize>,
+}
+
+enum SensorData<'py> {
+    F64(FloatArray<'py>),
+    F32(numpy::PyReadonlyArrayDyn<'py, f32>),
+    F32Owned(Vec<f32>),
+}
+
+impl SensorArray<'_> {
+    /// The values in C order.
+    pub fn floats(&self) -> Floats<'_> {
+        match &self.data {
+            SensorData::F64(a) => Floats::F64(a.as_slice()),
+            // `sensor_array` borrows only C-contiguous arrays, so this never falls back.
+            SensorData::F32(a) => Floats::F32(a.as_slice().unwrap_or(&[])),
+            SensorData::F32Owned(v) => Floats::F32(v),
+        }
+    }
+}
+
+/// Reads `obj` (argument `name`) as a float32/float64 NumPy array of any shape, keeping its
+/// precision (see [`SensorArray`]).
+pub fn sensor_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<SensorArray<'py>> {
+    if let Some(a) = c_order::<f32>(obj, name) {
+        let (data, shape) = a?;
+        let data = match data {
+            Ok(ro) => SensorData::F32(ro),
+            Err(copy) => SensorData::F32Owned(copy),
+        };
+        return Ok(SensorArray { data, shape });
+    }
+    let a = float_array(obj, name)?;
+    let shape = a.shape.clone();
+    Ok(SensorArray {
+        data: SensorData::F64(a),
+        shape,
+    })
+}
+
+/// A `T` array borrowed as it is when C-contiguous (`Ok`), else copied in C order (`Err`),
+/// with its shape; `None` when `obj` is not an array of `T`.
+#[allow(clippy::type_complexity)]
+fn c_order<'py, T: numpy::Element + Copy>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+) -> Option<
+    PyResult<(
+        Result<numpy::PyReadonlyArrayDyn<'py, T>, Vec<T>>,
+        Vec<usize>,
+    )>,
+> {
+    let a = obj.cast::<PyArrayDyn<T>>().ok()?;
+    let shape = a.shape().to_vec();
+    let ro = match a.try_readonly() {
+        Ok(ro) => ro,
+        Err(e) => {
+            return Some(Err(PyValueError::new_err(format!(
+                "{name}: the array cannot be borrowed ({e})"
+            ))));
+        }
+    };
+    // `as_slice` also accepts Fortran order, whose memory is not C order: check first.
+    let data = if a.is_c_contiguous() && ro.as_slice().is_ok() {
+        Ok(ro)
+    } else {
+        Err(ro.as_array().iter().copied().collect())
+    };
+    Some(Ok((data, shape)))
+}
+
 fn dtype_name(obj: &Bound<'_, PyAny>) -> String {
     obj.getattr("dtype")
         .and_then(|d| d.str().map(|s| s.to_string()))
@@ -47,26 +153,24 @@ fn dtype_name(obj: &Bound<'_, PyAny>) -> String {
 
 /// Reads `obj` (argument `name`) as a float32/float64 NumPy array of any shape.
 pub fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<FloatArray<'py>> {
-    if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
-        let shape = a.shape().to_vec();
-        let ro = a.try_readonly().map_err(|e| {
-            PyValueError::new_err(format!("{name}: the array cannot be borrowed ({e})"))
-        })?;
-        // `as_slice` also accepts Fortran order, whose memory is not C order: check first.
-        let data = if a.is_c_contiguous() && ro.as_slice().is_ok() {
-            Data::Borrowed(ro)
-        } else {
-            Data::Owned(ro.as_array().iter().copied().collect())
+    if let Some(a) = c_order::<f64>(obj, name) {
+        let (data, shape) = a?;
+        let data = match data {
+            Ok(ro) => Data::Borrowed(ro),
+            Err(copy) => Data::Owned(copy),
         };
         return Ok(FloatArray { data, shape });
     }
-    if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
-        let shape = a.shape().to_vec();
-        let ro = a.try_readonly().map_err(|e| {
-            PyValueError::new_err(format!("{name}: the array cannot be borrowed ({e})"))
-        })?;
-        let data = Data::Owned(ro.as_array().iter().map(|&x| f64::from(x)).collect());
-        return Ok(FloatArray { data, shape });
+    if let Some(a) = c_order::<f32>(obj, name) {
+        let (data, shape) = a?;
+        let wide = match &data {
+            Ok(ro) => ro.as_array().iter().map(|&x| f64::from(x)).collect(),
+            Err(copy) => copy.iter().map(|&x| f64::from(x)).collect(),
+        };
+        return Ok(FloatArray {
+            data: Data::Owned(wide),
+            shape,
+        });
     }
     if obj.cast::<numpy::PyUntypedArray>().is_ok() {
         return Err(PyTypeError::new_err(format!(
@@ -100,6 +204,21 @@ pub fn matrix<'py>(
         [n, c] if c == cols => Ok((a, n)),
         _ => Err(PyValueError::new_err(format!(
             "{name}: expected shape (N, {cols}), got {}",
+            shape_text(&a.shape)
+        ))),
+    }
+}
+
+/// `obj` as an `(N, 3)` sensor array in its own precision; returns it and `N`.
+pub fn sensor_matrix<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+) -> PyResult<(SensorArray<'py>, usize)> {
+    let a = sensor_array(obj, name)?;
+    match *a.shape.as_slice() {
+        [n, 3] => Ok((a, n)),
+        _ => Err(PyValueError::new_err(format!(
+            "{name}: expected shape (N, 3), got {}",
             shape_text(&a.shape)
         ))),
     }

@@ -1,7 +1,7 @@
 //! One filter, one channel: `Filter` (whole arrays with `update_batch`, or one sample at a
 //! time), the registry listing, and the offline smoother.
 
-use crate::arrays::{self, Steps, matrix, same_length};
+use crate::arrays::{self, Steps, same_length, sensor_matrix};
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -61,11 +61,12 @@ pub fn spec_from(
     Ok(spec)
 }
 
-/// The per-sample input of one channel over borrowed or owned `f64` slices (`[x, y, z]` rows).
+/// The per-sample input of one channel over borrowed sensor values (`[x, y, z]` rows, float32
+/// or float64 as given).
 pub struct Inputs<'a> {
-    pub gyr: &'a [f64],
-    pub acc: &'a [f64],
-    pub mag: Option<&'a [f64]>,
+    pub gyr: arrays::Floats<'a>,
+    pub acc: arrays::Floats<'a>,
+    pub mag: Option<arrays::Floats<'a>>,
     pub steps: &'a Steps,
     pub len: usize,
 }
@@ -73,16 +74,16 @@ pub struct Inputs<'a> {
 impl<'a> Inputs<'a> {
     /// The input of arrays read by [`imu_arrays`] with their steps.
     pub fn new(
-        gyr: &'a arrays::FloatArray<'_>,
-        acc: &'a arrays::FloatArray<'_>,
-        mag: Option<&'a arrays::FloatArray<'_>>,
+        gyr: &'a arrays::SensorArray<'_>,
+        acc: &'a arrays::SensorArray<'_>,
+        mag: Option<&'a arrays::SensorArray<'_>>,
         steps: &'a Steps,
         len: usize,
     ) -> Self {
         Self {
-            gyr: gyr.as_slice(),
-            acc: acc.as_slice(),
-            mag: mag.map(|m| m.as_slice()),
+            gyr: gyr.floats(),
+            acc: acc.floats(),
+            mag: mag.map(|m| m.floats()),
             steps,
             len,
         }
@@ -90,11 +91,48 @@ impl<'a> Inputs<'a> {
 
     #[inline]
     pub fn sample(&self, i: usize) -> ImuSample<f64> {
-        let v = |a: &[f64]| Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
-        match self.mag {
-            Some(m) => ImuSample::new(v(self.gyr), v(self.acc), v(m)),
-            None => ImuSample::six_d(v(self.gyr), v(self.acc)),
+        let v =
+            |a: &arrays::Floats<'_>| Vec3::new(a.get(3 * i), a.get(3 * i + 1), a.get(3 * i + 2));
+        match &self.mag {
+            Some(m) => ImuSample::new(v(&self.gyr), v(&self.acc), v(m)),
+            None => ImuSample::six_d(v(&self.gyr), v(&self.acc)),
         }
+    }
+}
+
+/// Writes rows `start..start + tile.len()` of `values` (`[x, y, z]` rows) into lane `lane` of
+/// the vector `field` picks in each tile entry, rounded to the lane's precision once (from
+/// `f32` directly: `f32 → f64 → f32` is exact).
+#[inline]
+fn fill_rows<T: Copy + Into<f64>, L: Lane>(
+    values: &[T],
+    start: usize,
+    lane: usize,
+    tile: &mut [(ImuSample<L>, L)],
+    field: impl Fn(&mut ImuSample<L>) -> &mut Vec3<L>,
+) {
+    let Some(rows) = values.get(3 * start..3 * (start + tile.len())) else {
+        return;
+    };
+    let cast = |x: T| <L::Scalar as Lane>::from_f64(x.into());
+    for ((s, _), r) in tile.iter_mut().zip(rows.chunks_exact(3)) {
+        let v = field(s);
+        v.x.set_lane(lane, cast(r[0]));
+        v.y.set_lane(lane, cast(r[1]));
+        v.z.set_lane(lane, cast(r[2]));
+    }
+}
+
+fn fill_floats<L: Lane>(
+    values: &arrays::Floats<'_>,
+    start: usize,
+    lane: usize,
+    tile: &mut [(ImuSample<L>, L)],
+    field: impl Fn(&mut ImuSample<L>) -> &mut Vec3<L>,
+) {
+    match values {
+        arrays::Floats::F32(v) => fill_rows(v, start, lane, tile, field),
+        arrays::Floats::F64(v) => fill_rows(v, start, lane, tile, field),
     }
 }
 
@@ -107,6 +145,39 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
     }
     fn dt(&self, i: usize) -> f64 {
         self.steps.at(i)
+    }
+    /// One pass over each sensor's rows (the batch engine's tiles): the same values as
+    /// `sample` and `dt`, rounded the same way, without a call per value.
+    fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
+        fill_floats(&self.gyr, start, lane, tile, |s| &mut s.gyr);
+        fill_floats(&self.acc, start, lane, tile, |s| &mut s.acc);
+        match &self.mag {
+            Some(m) => fill_floats(m, start, lane, tile, |s| &mut s.mag),
+            None => {
+                let nan = <L::Scalar as Lane>::from_f64(f64::NAN);
+                for (s, _) in tile.iter_mut() {
+                    s.mag.x.set_lane(lane, nan);
+                    s.mag.y.set_lane(lane, nan);
+                    s.mag.z.set_lane(lane, nan);
+                }
+            }
+        }
+        match self.steps {
+            Steps::Fixed(dt) => {
+                let dt = <L::Scalar as Lane>::from_f64(*dt);
+                for (_, d) in tile.iter_mut() {
+                    d.set_lane(lane, dt);
+                }
+            }
+            _ => {
+                for (k, (_, d)) in tile.iter_mut().enumerate() {
+                    d.set_lane(
+                        lane,
+                        <L::Scalar as Lane>::from_f64(self.steps.at(start + k)),
+                    );
+                }
+            }
+        }
     }
 }
 
@@ -149,8 +220,26 @@ fn run_series<T: Lane>(filter: &mut AnyFilter<T>, input: &Inputs<'_>, with_cov: 
         cov: Vec::with_capacity(if with_cov { 9 * n } else { 0 }),
         flags: Vec::with_capacity(n),
     };
+    // The samples come a tile at a time through the batch engine's reader (one pass over
+    // each array, float32 read as it is), the same values `step` would convert one by one.
+    let mut tile: Vec<(ImuSample<T>, T)> = Vec::with_capacity(rootfuse_batch::TILE_STEPS);
     for i in 0..n {
-        let f = step(filter, &input.sample(i), input.steps.at(i));
+        let j = i % rootfuse_batch::TILE_STEPS;
+        if j == 0 {
+            let len = (n - i).min(rootfuse_batch::TILE_STEPS);
+            tile.clear();
+            tile.resize(
+                len,
+                (
+                    ImuSample::new(Vec3::zero(), Vec3::zero(), Vec3::zero()),
+                    T::zero(),
+                ),
+            );
+            rootfuse_batch::ChannelSource::read_into(input, i, 0, &mut tile);
+        }
+        let (sample, dt) = &tile[j];
+        filter.update(sample, *dt);
+        let f = filter.flags().bits(0);
         out.flags.push(f);
         let q = filter.quat();
         out.quat
@@ -221,17 +310,17 @@ pub fn imu_arrays<'py>(
     acc: &Bound<'py, PyAny>,
     mag: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(
-    arrays::FloatArray<'py>,
-    arrays::FloatArray<'py>,
-    Option<arrays::FloatArray<'py>>,
+    arrays::SensorArray<'py>,
+    arrays::SensorArray<'py>,
+    Option<arrays::SensorArray<'py>>,
     usize,
 )> {
-    let (gyr, n) = matrix(gyr, "gyr", 3)?;
-    let (acc, na) = matrix(acc, "acc", 3)?;
+    let (gyr, n) = sensor_matrix(gyr, "gyr")?;
+    let (acc, na) = sensor_matrix(acc, "acc")?;
     same_length("acc", na, n)?;
     let mag = match mag {
         Some(m) if !m.is_none() => {
-            let (m, nm) = matrix(m, "mag", 3)?;
+            let (m, nm) = sensor_matrix(m, "mag")?;
             same_length("mag", nm, n)?;
             Some(m)
         }
@@ -540,9 +629,9 @@ pub fn recording(
     use_mask: Option<Vec<bool>>,
 ) -> Recording {
     let n = input.len;
-    let v3 = |a: &[f64]| -> Vec<Vec3<f64>> {
+    let v3 = |a: arrays::Floats<'_>| -> Vec<Vec3<f64>> {
         (0..n)
-            .map(|i| Vec3::new(a[3 * i], a[3 * i + 1], a[3 * i + 2]))
+            .map(|i| Vec3::new(a.get(3 * i), a.get(3 * i + 1), a.get(3 * i + 2)))
             .collect()
     };
     Recording {

@@ -12,6 +12,7 @@ mod arrays;
 mod calibration;
 mod eval;
 mod filter;
+mod fleet;
 mod lsq;
 mod many;
 
@@ -95,6 +96,8 @@ fn _rootfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(filter::filters, m)?)?;
     m.add_function(wrap_pyfunction!(filter::smooth, m)?)?;
     m.add_function(wrap_pyfunction!(many::run_many, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet::estimate_arrow, m)?)?;
+    m.add_class::<fleet::EstimateStream>()?;
     m.add_class::<lsq::Rls>()?;
     m.add_function(wrap_pyfunction!(lsq::lstsq, m)?)?;
     m.add_function(wrap_pyfunction!(lsq::stress, m)?)?;

@@ -1,20 +1,27 @@
 //! Many channels through the SIMD batch engine (`rootfuse_batch`), on all cores.
+//!
+//! Input arrays are borrowed as they are (float32 or float64, never widened into a copy) and
+//! read by the engine a tile of samples per channel at a time
+//! ([`ChannelSource::read_into`](rootfuse_batch::ChannelSource::read_into)); series are
+//! written by the engine straight into NumPy arrays allocated once
+//! ([`EstimateSink`](rootfuse_batch::EstimateSink)).
 
-use crate::arrays::{FloatArray, Steps, float_array, positive, vector};
+use crate::arrays::{Floats, SensorArray, Steps, float_array, positive, sensor_array, vector};
 use crate::filter::{Inputs, rejections_dict, spec_from};
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
-use rootfuse_attitude::Lane;
-use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-use rootfuse_batch::{Batch, ChannelOutput, Columns, Precision, RejectionTotals, run_sources_with};
-use rootfuse_lane::wide::{f32x8, f64x4};
+use rootfuse_attitude::OrientationFilter;
+use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_batch::{
+    Columns, Estimate, EstimateSink, Precision, RejectionTotals, run_final_states, run_into_sinks,
+};
 
 /// Channels as given: one `(C, N, 3)` array, or a list of `(N_i, 3)` arrays.
 struct Channels<'py> {
     /// One array per channel when a list was given; one array of all channels otherwise.
-    arrays: Vec<FloatArray<'py>>,
+    arrays: Vec<SensorArray<'py>>,
     /// Samples of each channel.
     lens: Vec<usize>,
     /// True when the input was a `(C, N, 3)` array.
@@ -22,12 +29,12 @@ struct Channels<'py> {
 }
 
 impl Channels<'_> {
-    fn channel(&self, c: usize) -> &[f64] {
+    fn channel(&self, c: usize) -> Floats<'_> {
         if self.stacked {
             let n = self.lens.first().copied().unwrap_or(0);
-            &self.arrays[0].as_slice()[c * n * 3..(c + 1) * n * 3]
+            self.arrays[0].floats().slice(c * n * 3..(c + 1) * n * 3)
         } else {
-            self.arrays[c].as_slice()
+            self.arrays[c].floats()
         }
     }
 }
@@ -43,7 +50,7 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
         for (c, item) in obj.try_iter()?.enumerate() {
             let item = item?;
             let label = format!("{name}[{c}]");
-            let a = float_array(&item, &label)?;
+            let a = sensor_array(&item, &label)?;
             match *a.shape.as_slice() {
                 [n, 3] => lens.push(n),
                 _ => {
@@ -61,7 +68,7 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
             stacked: false,
         });
     }
-    let a = float_array(obj, name)?;
+    let a = sensor_array(obj, name)?;
     match *a.shape.as_slice() {
         [c, n, 3] => Ok(Channels {
             arrays: vec![a],
@@ -155,41 +162,25 @@ fn channel_steps(
     }
 }
 
-/// Final states only: the batch with per-channel specs, fed all channels.
-struct FinalStates<'a> {
-    specs: &'a [FilterSpec],
-    sources: &'a [Inputs<'a>],
-}
-
-impl<L: Lane> FilterVisitor<L> for FinalStates<'_> {
-    type Output = Result<Vec<(Vec<f64>, RejectionTotals)>, usize>;
-    fn visit<F: RegisteredFilter<L>>(self, _: &FilterSpec) -> Self::Output {
-        let mut batch = Batch::<L, F>::with_channel_specs(self.specs).map_err(|e| e.channel)?;
-        batch.run_channels(self.sources);
-        Ok((0..self.specs.len())
-            .map(|c| {
-                let (q, b) = (batch.quat(c), batch.bias(c));
-                (vec![q.w, q.x, q.y, q.z, b.x, b.y, b.z], batch.rejections(c))
-            })
-            .collect())
-    }
-}
-
 /// Runs many channels of one registered filter through the SIMD batch engine (`f32x8` or
-/// `f64x4` lanes, chunks spread over all cores with the GIL released). Each channel's result
-/// equals running it alone through `Filter(name, ...)` bit for bit.
+/// `f64x4` lanes, two vectors interleaved for the small filters, chunks spread over all cores
+/// with the GIL released). Each channel's result equals running it alone through
+/// `Filter(name, ...)` bit for bit.
 ///
 /// gyr, acc, mag: `(C, N, 3)` arrays, or lists of `(N_i, 3)` arrays (channels of different
-/// lengths); `mag=None` for 6D data. `dt`: a number (s), a `(C, N)` array or a list of `(N_i,)`
-/// arrays; or `t`: sample times in the same shapes. `params` apply to every channel;
-/// `channel_params`, a list of C dicts, override them per channel (same filter, any
-/// parameters: channels of equal parameters share SIMD chunks).
+/// lengths), float32 or float64 (read as they are, without a widening copy); `mag=None` for
+/// 6D data. `dt`: a number (s), a `(C, N)` array or a list of `(N_i,)` arrays; or `t`: sample
+/// times in the same shapes. `params` apply to every channel; `channel_params`, a list of C
+/// dicts, override them per channel (same filter, any parameters: channels of equal
+/// parameters share SIMD chunks).
 ///
 /// With `series=True` returns, for `(C, N, 3)` input, a dict of float64 arrays `quat`
 /// `(C, N, 4)`, `bias` `(C, N, 3)` (if `bias`), `covariance` `(C, N, 3, 3)` (if `covariance`
 /// and the filter has one), `flags` `(C, N)` uint8 (if `flags`) and `rejections` (a list of
-/// per-channel count dicts); for list input a list of such dicts per channel. With
-/// `series=False` only the final state: `{"quat": (C, 4), "bias": (C, 3), "rejections": [...]}`.
+/// per-channel count dicts); for list input a list of such dicts per channel. The arrays are
+/// allocated once and written by the engine as it runs; series not asked for are neither
+/// computed nor allocated. With `series=False` only the final state: `{"quat": (C, 4),
+/// "bias": (C, 3), "rejections": [...]}`.
 #[pyfunction]
 #[pyo3(signature = (name, gyr, acc, mag=None, dt=None, *, t=None, dof=None, precision="f32", channel_params=None, series=true, bias=true, covariance=false, flags=true, **params))]
 #[allow(clippy::too_many_arguments)]
@@ -263,73 +254,95 @@ pub fn run_many<'py>(
         })
         .collect();
     if !series {
-        let visitor = FinalStates {
-            specs: &specs,
-            sources: &sources,
-        };
-        let result = py.detach(|| match prec {
-            Precision::F32 => specs.first().map(|s| s.visit::<f32x8, _>(visitor)),
-            Precision::F64 => specs.first().map(|s| s.visit::<f64x4, _>(visitor)),
-        });
-        let states = result.unwrap_or(Ok(Vec::new())).map_err(|c| {
-            PyValueError::new_err(format!("channel_params[{c}]: not the same filter"))
-        })?;
-        let q: Vec<f64> = states.iter().flat_map(|(s, _)| s[..4].to_vec()).collect();
-        let b: Vec<f64> = states.iter().flat_map(|(s, _)| s[4..].to_vec()).collect();
+        let states = py
+            .detach(|| run_final_states(&specs, &sources, prec))
+            .map_err(|e| {
+                PyValueError::new_err(format!(
+                    "channel_params[{}]: not the same filter",
+                    e.channel
+                ))
+            })?;
+        let q: Vec<f64> = states
+            .iter()
+            .flat_map(|s| [s.quat.w, s.quat.x, s.quat.y, s.quat.z])
+            .collect();
+        let b: Vec<f64> = states
+            .iter()
+            .flat_map(|s| [s.bias.x, s.bias.y, s.bias.z])
+            .collect();
         let out = PyDict::new(py);
         out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, 4])?)?;
         out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, 3])?)?;
         let rej = PyList::empty(py);
-        for (_, r) in &states {
-            rej.append(rejections_dict(py, r)?)?;
+        for s in &states {
+            rej.append(rejections_dict(py, &s.rejections)?)?;
         }
         out.set_item("rejections", rej)?;
         return Ok(out.into_any());
     }
+    let has_cov = specs
+        .first()
+        .is_some_and(|s| s.build::<f64>().attitude_covariance().is_some());
     let columns = Columns {
         bias,
-        covariance,
+        covariance: covariance && has_cov,
         flags,
     };
-    let outputs = py.detach(|| run_grouped(&specs, &sources, prec, columns));
+    // The outputs: one set of arrays for stacked input (each channel a contiguous part of
+    // it), one per channel for lists.
+    let shapes: Vec<Vec<usize>> = if g.stacked {
+        vec![vec![count, g.lens.first().copied().unwrap_or(0)]]
+    } else {
+        g.lens.iter().map(|&n| vec![n]).collect()
+    };
+    let outputs: Vec<SeriesArrays<'py>> = shapes
+        .iter()
+        .map(|lead| SeriesArrays::zeros(py, lead, columns))
+        .collect();
+    let mut views: Vec<SeriesViews<'_, 'py>> = outputs
+        .iter()
+        .map(SeriesArrays::views)
+        .collect::<PyResult<_>>()?;
+    let per_array = if g.stacked { count } else { 1 };
+    let mut sinks: Vec<ArraySink<'_>> = Vec::with_capacity(count);
+    for v in &mut views {
+        sinks.extend(v.split(per_array));
+    }
+    py.detach(|| run_grouped(&specs, &sources, &mut sinks, prec, columns));
+    let rejections: Vec<RejectionTotals> = sinks.iter().map(|s| s.rejections).collect();
+    drop(sinks);
+    drop(views);
+    let dicts = outputs
+        .into_iter()
+        .map(|o| o.into_dict(py))
+        .collect::<PyResult<Vec<_>>>()?;
     if g.stacked {
-        stacked_output(
-            py,
-            &outputs,
-            count,
-            g.lens.first().copied().unwrap_or(0),
-            columns,
-        )
+        let out = dicts.into_iter().next().unwrap_or_else(|| PyDict::new(py));
+        let rej = PyList::empty(py);
+        for r in &rejections {
+            rej.append(rejections_dict(py, r)?)?;
+        }
+        out.set_item("rejections", rej)?;
+        Ok(out.into_any())
     } else {
         let list = PyList::empty(py);
-        for o in &outputs {
-            list.append(
-                stacked_output(py, std::slice::from_ref(o), 1, o.quat.len(), columns)?
-                    .cast_into::<PyDict>()
-                    .map(|d| squeeze(py, d))??,
-            )?;
+        for (d, r) in dicts.into_iter().zip(&rejections) {
+            d.set_item("rejections", rejections_dict(py, r)?)?;
+            list.append(d)?;
         }
         Ok(list.into_any())
     }
 }
 
-/// Drops the leading channel axis of a one-channel result.
-fn squeeze<'py>(py: Python<'py>, d: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    for (k, v) in d.iter() {
-        out.set_item(k, v.get_item(0)?)?;
-    }
-    Ok(out)
-}
-
-/// Channels grouped by equal spec, each group through `run_sources_with`, outputs in channel
-/// order (a channel's result does not depend on its chunk mates).
+/// Channels grouped by equal spec, each group through the batch engine, every channel's
+/// estimates into its own sink (a channel's result does not depend on its chunk mates).
 fn run_grouped(
     specs: &[FilterSpec],
     sources: &[Inputs<'_>],
+    sinks: &mut [ArraySink<'_>],
     prec: Precision,
     columns: Columns,
-) -> Vec<ChannelOutput> {
+) {
     let mut groups: Vec<(&FilterSpec, Vec<usize>)> = Vec::new();
     for (c, s) in specs.iter().enumerate() {
         match groups.iter_mut().find(|(g, _)| *g == s) {
@@ -337,66 +350,167 @@ fn run_grouped(
             None => groups.push((s, vec![c])),
         }
     }
-    let mut out = vec![ChannelOutput::default(); specs.len()];
+    if groups.len() == 1 {
+        run_into_sinks(&specs[0], prec, sources, sinks, columns);
+        return;
+    }
     for (spec, members) in groups {
         let srcs: Vec<&Inputs<'_>> = members.iter().map(|&c| &sources[c]).collect();
-        let results = match prec {
-            Precision::F32 => run_sources_with::<f32x8, _>(spec, &srcs, columns),
-            Precision::F64 => run_sources_with::<f64x4, _>(spec, &srcs, columns),
-        };
-        for (c, r) in members.into_iter().zip(results) {
-            out[c] = r;
+        let mut group: Vec<ArraySink<'_>> = members
+            .iter()
+            .map(|&c| std::mem::take(&mut sinks[c]))
+            .collect();
+        run_into_sinks(spec, prec, &srcs, &mut group, columns);
+        for (c, s) in members.into_iter().zip(group) {
+            sinks[c] = s;
         }
     }
-    out
 }
 
-/// `(C, N, ...)` arrays of equal-length channel outputs.
-fn stacked_output<'py>(
-    py: Python<'py>,
-    outputs: &[ChannelOutput],
-    count: usize,
-    n: usize,
-    columns: Columns,
-) -> PyResult<Bound<'py, PyAny>> {
-    let out = PyDict::new(py);
-    let mut q = Vec::with_capacity(count * n * 4);
-    for o in outputs {
-        q.extend(o.quat.iter().flat_map(|q| [q.w, q.x, q.y, q.z]));
-    }
-    out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, n, 4])?)?;
-    if columns.bias {
-        let mut b = Vec::with_capacity(count * n * 3);
-        for o in outputs {
-            b.extend(o.bias.iter().flat_map(|b| [b.x, b.y, b.z]));
+/// The series arrays of one output dict, allocated once with `zeros` (numpy maps zeroed
+/// pages lazily, so the engine's write is the only touch), shapes `lead + [4]` etc.
+struct SeriesArrays<'py> {
+    quat: Bound<'py, PyArrayDyn<f64>>,
+    bias: Option<Bound<'py, PyArrayDyn<f64>>>,
+    covariance: Option<Bound<'py, PyArrayDyn<f64>>>,
+    flags: Option<Bound<'py, PyArrayDyn<u8>>>,
+}
+
+impl<'py> SeriesArrays<'py> {
+    fn zeros(py: Python<'py>, lead: &[usize], columns: Columns) -> Self {
+        let shape = |tail: &[usize]| -> Vec<usize> { lead.iter().chain(tail).copied().collect() };
+        Self {
+            quat: PyArrayDyn::zeros(py, shape(&[4]), false),
+            bias: columns
+                .bias
+                .then(|| PyArrayDyn::zeros(py, shape(&[3]), false)),
+            covariance: columns
+                .covariance
+                .then(|| PyArrayDyn::zeros(py, shape(&[3, 3]), false)),
+            flags: columns
+                .flags
+                .then(|| PyArrayDyn::zeros(py, shape(&[]), false)),
         }
-        out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, n, 3])?)?;
     }
-    if columns.covariance && outputs.iter().all(|o| o.covariance.len() == o.quat.len()) && n > 0 {
-        let mut p = Vec::with_capacity(count * n * 9);
-        for o in outputs {
-            p.extend(
-                o.covariance
-                    .iter()
-                    .flat_map(|u| [u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]]),
-            );
+
+    fn views(&self) -> PyResult<SeriesViews<'_, 'py>> {
+        // Arrays made here and not yet handed to Python: nothing else can borrow them.
+        let busy = |e: numpy::BorrowError| pyo3::exceptions::PyRuntimeError::new_err(e.to_string());
+        Ok(SeriesViews {
+            quat: self.quat.try_readwrite().map_err(busy)?,
+            bias: self
+                .bias
+                .as_ref()
+                .map(|a| a.try_readwrite())
+                .transpose()
+                .map_err(busy)?,
+            covariance: self
+                .covariance
+                .as_ref()
+                .map(|a| a.try_readwrite())
+                .transpose()
+                .map_err(busy)?,
+            flags: self
+                .flags
+                .as_ref()
+                .map(|a| a.try_readwrite())
+                .transpose()
+                .map_err(busy)?,
+            _arrays: core::marker::PhantomData,
+        })
+    }
+
+    fn into_dict(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        out.set_item("quat", self.quat)?;
+        if let Some(b) = self.bias {
+            out.set_item("bias", b)?;
         }
-        out.set_item(
-            "covariance",
-            PyArray1::from_vec(py, p).reshape([count, n, 3, 3])?,
-        )?;
-    }
-    if columns.flags {
-        let mut f = Vec::with_capacity(count * n);
-        for o in outputs {
-            f.extend_from_slice(&o.flags);
+        if let Some(p) = self.covariance {
+            out.set_item("covariance", p)?;
         }
-        out.set_item("flags", PyArray1::from_vec(py, f).reshape([count, n])?)?;
+        if let Some(f) = self.flags {
+            out.set_item("flags", f)?;
+        }
+        Ok(out)
     }
-    let rej = PyList::empty(py);
-    for o in outputs {
-        rej.append(rejections_dict(py, &o.rejections)?)?;
+}
+
+/// Write access to one [`SeriesArrays`] while the engine runs.
+struct SeriesViews<'s, 'py> {
+    quat: numpy::PyReadwriteArrayDyn<'py, f64>,
+    bias: Option<numpy::PyReadwriteArrayDyn<'py, f64>>,
+    covariance: Option<numpy::PyReadwriteArrayDyn<'py, f64>>,
+    flags: Option<numpy::PyReadwriteArrayDyn<'py, u8>>,
+    _arrays: core::marker::PhantomData<&'s SeriesArrays<'py>>,
+}
+
+impl SeriesViews<'_, '_> {
+    /// One sink per channel over `channels` equal contiguous parts of the arrays.
+    fn split(&mut self, channels: usize) -> Vec<ArraySink<'_>> {
+        fn parts<'a, T: numpy::Element>(
+            a: Option<&'a mut numpy::PyReadwriteArrayDyn<'_, T>>,
+            channels: usize,
+        ) -> Vec<&'a mut [T]> {
+            match a.and_then(|a| a.as_slice_mut().ok()) {
+                Some(s) if channels > 0 => {
+                    let per = s.len() / channels;
+                    if per == 0 {
+                        (0..channels).map(|_| Default::default()).collect()
+                    } else {
+                        s.chunks_mut(per).collect()
+                    }
+                }
+                _ => (0..channels).map(|_| Default::default()).collect(),
+            }
+        }
+        let quat = parts(Some(&mut self.quat), channels);
+        let bias = parts(self.bias.as_mut(), channels);
+        let covariance = parts(self.covariance.as_mut(), channels);
+        let flags = parts(self.flags.as_mut(), channels);
+        quat.into_iter()
+            .zip(bias)
+            .zip(covariance)
+            .zip(flags)
+            .map(|(((quat, bias), covariance), flags)| ArraySink {
+                quat,
+                bias,
+                covariance,
+                flags,
+                rejections: RejectionTotals::default(),
+            })
+            .collect()
     }
-    out.set_item("rejections", rej)?;
-    Ok(out.into_any())
+}
+
+/// One channel's part of the output arrays: sample `k` goes to rows `k` (an empty slice is
+/// a series not collected).
+#[derive(Default)]
+struct ArraySink<'a> {
+    quat: &'a mut [f64],
+    bias: &'a mut [f64],
+    covariance: &'a mut [f64],
+    flags: &'a mut [u8],
+    rejections: RejectionTotals,
+}
+
+impl EstimateSink for ArraySink<'_> {
+    #[inline]
+    fn push(&mut self, k: usize, e: &Estimate) {
+        if let Some(q) = self.quat.get_mut(4 * k..4 * k + 4) {
+            q.copy_from_slice(&[e.quat.w, e.quat.x, e.quat.y, e.quat.z]);
+        }
+        if let (Some(b), Some(out)) = (e.bias, self.bias.get_mut(3 * k..3 * k + 3)) {
+            out.copy_from_slice(&[b.x, b.y, b.z]);
+        }
+        if let (Some(u), Some(out)) = (e.covariance, self.covariance.get_mut(9 * k..9 * k + 9)) {
+            out.copy_from_slice(&[u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]]);
+        }
+        if let (Some(f), Some(out)) = (e.flags, self.flags.get_mut(k)) {
+            *out = f;
+        }
+    }
+    fn finish(&mut self, rejections: RejectionTotals) {
+        self.rejections = rejections;
+    }
 }

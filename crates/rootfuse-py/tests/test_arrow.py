@@ -1,5 +1,6 @@
-"""rootfuse.arrow on pyarrow tables, and the same job on Spark (local[2]) with
-groupBy("device").applyInArrow: per device, bit for bit the CLI's f64 estimates."""
+"""rootfuse.arrow: Arrow tables and streams through the batch engine's fleet runner (in Rust),
+and the same job on Spark (local[2]) in both layouts: per device, bit for bit the CLI's
+estimates."""
 
 import os
 import shutil
@@ -56,32 +57,111 @@ def _assert_same(got, want):
 
 def test_table_equals_cli_bit_for_bit(fleet):
     table, cli_est = fleet
-    _assert_same(ra.estimate_table(table, "flagship", flags=True), cli_est)
+    got = ra.estimate_table(table, "flagship", flags=True)
+    # One estimate per input row, in input order, the device column as it was.
+    assert got.num_rows == table.num_rows
+    assert got.column("device").equals(table.column("device"))
+    assert got.schema.field("flags").type == pa.uint8()
+    _assert_same(got, cli_est)
 
 
-def test_record_batch_and_float32_columns(fleet):
+def test_any_arrow_stream_and_record_batches(fleet):
     table, cli_est = fleet
+    # A RecordBatchReader of small batches: block boundaries do not change a bit.
+    reader = pa.RecordBatchReader.from_batches(table.schema, table.to_batches(max_chunksize=777))
+    stream = ra.estimate_stream(reader, "flagship", flags=True)
+    assert isinstance(stream, pa.RecordBatchReader)
+    _assert_same(stream.read_all(), cli_est)
     batch = table.combine_chunks().to_batches()[0]
     assert ra.estimate_table(batch, "flagship", flags=True).num_rows == batch.num_rows
-    # float32 columns are accepted (the estimates then belong to the rounded data).
-    f32 = table.set_column(
-        table.column_names.index("gx"), "gx", table.column("gx").cast(pa.float32())
-    )
-    assert ra.estimate_table(f32, "mahony").num_rows == table.num_rows
+    # The Rust object speaks the Arrow PyCapsule interface, once.
+    s = ra.estimate_arrow(table, "mahony")
+    assert s.column_names[:3] == ["device", "t", "qw"]
+    assert pa.table(s).num_rows == table.num_rows
+    with pytest.raises(ValueError, match="already read"):
+        pa.table(s)
 
 
-def test_rows_out_of_order_are_sorted_and_bad_time_refused(fleet):
+def test_float32_columns_and_options(fleet):
+    table, _ = fleet
+    f32 = table.set_column(table.column_names.index("gx"), "gx", table.column("gx").cast(pa.float32()))
+    out = ra.estimate_table(f32, "mahony", bias=True, covariance=True)
+    assert out.num_rows == table.num_rows
+    # Mahony has no covariance: the columns are not there, as in the CLI's output.
+    assert out.column_names == ["device", "t", "qw", "qx", "qy", "qz", "bx", "by", "bz"]
+    six = ra.estimate_table(table.drop_columns(["mx", "my", "mz"]), "flagship", dof=6, precision="f32")
+    assert six.num_rows == table.num_rows
+    with pytest.raises(ValueError, match="9D"):
+        ra.estimate_table(table.drop_columns(["mx", "my", "mz"]), "flagship", dof=9)
+
+
+def test_rows_out_of_order_are_refused_or_sorted(fleet):
     table, cli_est = fleet
     shuffled = table.take(pa.array(np.random.default_rng(1).permutation(table.num_rows)))
-    _assert_same(ra.estimate_table(shuffled, "flagship", flags=True), cli_est)
+    with pytest.raises(ValueError, match=r"row \d+, column `t` \(device \d+\).*sort=True"):
+        ra.estimate_table(shuffled, "flagship")
+    _assert_same(ra.estimate_table(shuffled, "flagship", flags=True, sort=True), cli_est)
     one = _by_device(table)[0]
     t = one.column("t").to_numpy().copy()
     t[5] = t[4]
     bad = one.set_column(one.column_names.index("t"), "t", pa.array(t))
-    with pytest.raises(ValueError, match="column `t`"):
-        ra.estimate_device(bad, "mahony")
+    with pytest.raises(ValueError, match=r"row 5, column `t` \(device 0\).*does not increase"):
+        ra.estimate_table(bad, "mahony")
     with pytest.raises(TypeError, match="column `gx` has type int64"):
         ra.estimate_device(one.set_column(one.column_names.index("gx"), "gx", pa.array(np.zeros(len(t), dtype=np.int64))), "mahony")
+    with pytest.raises(TypeError, match="Arrow stream"):
+        ra.estimate_table(np.zeros(3), "mahony")
+
+
+def test_cluster_by_device_groups_devices_in_row_groups(fleet, tmp_path):
+    table, cli_est = fleet
+    path = tmp_path / "clustered.parquet"
+    assert ra.cluster_by_device(table, path, group=4) == 2
+    f = pq.ParquetFile(path)
+    assert f.metadata.num_row_groups == 2
+    seen = []
+    for g in range(2):
+        part = f.read_row_group(g)
+        devices = set(part.column("device").to_pylist())
+        assert len(devices) <= 4 and not devices & set(seen)
+        seen += devices
+        t = part.column("t").to_numpy()
+        assert np.all(np.diff(t) >= 0), "time-major within a group"
+    # What mapInArrow does with each partition: its batches through one runner.
+    fn = ra.batches_function("flagship", flags=True)
+    out = pa.Table.from_batches(list(fn(f.iter_batches(batch_size=500))))
+    assert out.schema.field("flags").type == pa.int8()
+    _assert_same(out, cli_est)
+
+
+def test_device_params_run_each_device_with_its_own(fleet):
+    """Per-device parameters: each device equals its own run with its parameters, bit for bit,
+    whatever chunk it shares (max_dt is structural: device 4 gets a chunk of its own)."""
+    table, _ = fleet
+    params = {0: {"gyr_noise": 0.02}, "3": {"tau_acc": 1.0}, 4: {"max_dt": 0.5}, 99: {"gyr_noise": 0.01}}
+    with pytest.warns(UserWarning, match=r"3 device\(s\) not in device_params.*\['99'\]"):
+        got = ra.estimate_table(table, "flagship", device_params=params)
+    by = _by_device(got)
+    for d in range(DEVICES):
+        own = params.get(d) or params.get(str(d)) or {}
+        want = ra.estimate_table(_by_device(table)[d], "flagship", **own)
+        for name in ("qw", "qx", "qy", "qz"):
+            np.testing.assert_array_equal(by[d].column(name).to_numpy().view(np.uint64),
+                                          want.column(name).to_numpy().view(np.uint64), err_msg=f"device {d}")
+    # The same as a table (null: that parameter's default), and the stream's own summary.
+    t = pa.table({"device": [0, 3, 4, 99], "gyr_noise": [0.02, None, None, 0.01],
+                  "tau_acc": [None, 1.0, None, None], "max_dt": [None, None, 0.5, None]})
+    s = ra.estimate_arrow(table, "flagship", device_params=ra.device_params_dict(t))
+    assert s.summary() is None
+    again = pa.table(s)
+    assert again.equals(got)
+    summary = s.summary()
+    assert summary["devices"] == DEVICES and summary["devices_with_defaults"] == 3
+    assert summary["unseen_devices"] == ["99"] and summary["rows"] == table.num_rows
+    with pytest.raises(ValueError, match=r"device_params\['1'\]: kp"):
+        ra.estimate_table(table, "flagship", device_params={1: {"kp": 1.0}})
+    with pytest.raises(TypeError, match=r"row 0, column `gyr_noise`: expected a number"):
+        ra.device_params_dict(pa.table({"device": [1], "gyr_noise": ["a"]}))
 
 
 def _spark_ready():
@@ -94,18 +174,19 @@ def _spark_ready():
     return None
 
 
-@pytest.mark.skipif(_spark_ready() is not None, reason=f"Spark not tested: {_spark_ready()}")
-def test_spark_apply_in_arrow_equals_cli(fleet, tmp_path):
+@pytest.fixture(scope="module")
+def spark():
+    why = _spark_ready()
+    if why is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"Spark must run in CI: {why}")
+        pytest.skip(f"Spark not tested: {why}")
     from pyspark.sql import SparkSession
 
-    table, cli_est = fleet
-    path = tmp_path / "fleet.parquet"
-    pq.write_table(table, path)
-    # Executors run this interpreter (and so this build of rootfuse).
+    # Executors run this interpreter (and so this build of rootfuse), on loopback only.
     os.environ["PYSPARK_PYTHON"] = sys.executable
-    # Local mode on the loopback interface only.
     os.environ["SPARK_LOCAL_IP"] = "127.0.0.1"
-    spark = (
+    session = (
         SparkSession.builder.master("local[2]")
         .appName("rootfuse-test")
         .config("spark.ui.enabled", "false")
@@ -114,10 +195,18 @@ def test_spark_apply_in_arrow_equals_cli(fleet, tmp_path):
         .config("spark.sql.shuffle.partitions", "2")
         .getOrCreate()
     )
-    try:
-        df = spark.read.parquet(str(path))
-        est = ra.run_spark(df, "flagship", flags=True)
-        got = est.toArrow()
-    finally:
-        spark.stop()
+    yield session
+    session.stop()
+
+
+@pytest.mark.parametrize("layout", ["bucket", "clustered"])
+def test_spark_layouts_equal_cli(spark, fleet, tmp_path, layout):
+    table, cli_est = fleet
+    path = tmp_path / "fleet.parquet"
+    if layout == "clustered":
+        ra.cluster_by_device(table, path, group=4)
+    else:
+        pq.write_table(table, path)
+    df = spark.read.parquet(str(path))
+    got = ra.run_spark(df, "flagship", layout=layout, flags=True, buckets=2).toArrow()
     _assert_same(got, cli_est)

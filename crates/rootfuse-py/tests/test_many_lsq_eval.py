@@ -58,6 +58,45 @@ def test_run_many_final_states_only():
     np.testing.assert_array_equal(plain["bias"], full["bias"][:, -1])
 
 
+@pytest.mark.parametrize("name", ["mahony", "sqrt-eskf"])
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_run_many_float32_input_is_read_as_is(name, precision):
+    """float32 arrays are read without a widening copy: the same bits as the same values given
+    as float64, in lanes (mahony runs two vectors interleaved) and alone (update_batch)."""
+    recs = sims(11, duration_s=1.5)  # 151 samples: two full tiles of 64 steps and a partial one
+    g32 = np.stack([r["gyr"] for r in recs]).astype(np.float32)
+    a32 = np.stack([r["acc"] for r in recs]).astype(np.float32)
+    m32 = np.stack([r["mag"] for r in recs]).astype(np.float32)
+    g32[4, 70] = np.nan
+    wide = [x.astype(np.float64) for x in (g32, a32, m32)]
+    for series in (True, False):
+        a = rf.run_many(name, g32, a32, m32, 0.01, precision=precision, series=series)
+        b = rf.run_many(name, *wide, 0.01, precision=precision, series=series)
+        np.testing.assert_array_equal(a["quat"], b["quat"])
+        np.testing.assert_array_equal(a["bias"], b["bias"])
+    single = rf.Filter(name, precision=precision).update_batch(g32[4], a32[4], m32[4], 0.01)
+    np.testing.assert_array_equal(a["quat"][4], single["quat"][-1])
+    assert a["rejections"][4]["gyr"] == 1
+
+
+def test_run_many_channels_across_tiles_and_outputs_not_asked():
+    """Channels of 1, 63, 64, 65 and 200 samples (around the engine's 64-step tiles), each
+    equal to its own run; series nobody asked for are not in the result."""
+    lens = [1, 63, 64, 65, 200]
+    recs = [rf.simulate("fast-rotation", seed=s, duration_s=2.0) for s in range(len(lens))]
+    gyr = [r["gyr"][:n] for r, n in zip(recs, lens)]
+    acc = [r["acc"][:n] for r, n in zip(recs, lens)]
+    out = rf.run_many("madgwick", gyr, acc, None, 0.01, dof=6, precision="f64", bias=False,
+                      flags=False)
+    for c, n in enumerate(lens):
+        assert set(out[c]) == {"quat", "rejections"}
+        single = rf.Filter("madgwick", dof=6).update_batch(gyr[c], acc[c], None, 0.01)
+        np.testing.assert_array_equal(out[c]["quat"], single["quat"])
+    many = rf.run_many("mahony", np.stack(gyr[2:4:2] * 3), np.stack(acc[2:4:2] * 3), None, 0.01, dof=6,
+                       covariance=True)
+    assert "covariance" not in many  # Mahony carries none
+
+
 @pytest.mark.parametrize("form", rf.rls_forms())
 @pytest.mark.parametrize("precision", ["f32", "f64"])
 def test_rls_fits_a_line(form, precision):
