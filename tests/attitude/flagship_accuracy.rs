@@ -242,6 +242,10 @@ fn resampled(rec: &Recording, jitter: f64, drop: f64, seed: u64) -> Recording {
 /// 6D) and inclination RMSE within 3 % of the regular run's, and no trial's 9D or 6D total
 /// moving by more than 10 % (per-trial numbers printed).
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn irregular_sampling_of_the_shared_trials() {
     let Some(dir) = broad_dir() else { return };
     let recs = rootfuse_io::read_dir(&dir).expect("the shared trials");

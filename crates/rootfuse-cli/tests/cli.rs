@@ -115,6 +115,10 @@ fn run_and_eval_on_simulated_files() {
 }
 
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn run_and_eval_on_a_cut_of_broad() {
     let Some(broad) = broad_dir() else { return };
     let dir = temp_dir("broad");
@@ -841,6 +845,10 @@ fn eval_align_scores_truth_in_other_frames() {
 /// On BROAD (pre-aligned), aligning never makes a good estimate look worse: per trial, the
 /// total RMSE after `--align` is at most the one without, 9D and 6D.
 #[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
 fn eval_align_never_hurts_on_broad() {
     let Some(broad) = broad_dir() else { return };
     let dir = temp_dir("align-broad");
