@@ -33,7 +33,7 @@ fn defaults_are_values_of_their_kind() {
             );
         }
         // The screening limits are parameters of every filter, never lane-varying.
-        for name in ["max_dt", "max_gyr"] {
+        for name in ["max_dt", "max_gyr", "max_acc", "max_mag"] {
             let info = kind.params().iter().find(|i| i.name == name).unwrap();
             assert!(!info.per_lane, "{} {name}", kind.name());
         }

@@ -323,7 +323,8 @@ pub trait Params: Clone + Default + fmt::Debug {
 /// Declares a parameter struct: each field has a type ([`ParamValue`]: `f64`, `u32`, `bool`
 /// or [`Dof`]), a default written as a number, a unit, a range, a doc, and optionally the
 /// marker `shared` for a real parameter that cannot differ between lanes of one chunk. Every struct also
-/// gets the two input-screening limits `max_dt` and `max_gyr` ([`ScreenLimits`](super::ScreenLimits)).
+/// gets the four input-screening limits `max_dt`, `max_gyr`, `max_acc` and `max_mag`
+/// ([`ScreenLimits`](super::ScreenLimits)).
 macro_rules! params {
     (
         $(#[$meta:meta])*
@@ -342,6 +343,18 @@ macro_rules! params {
                 /// (counted in `Rejections::gyr`). The default (35 rad/s, about 2000 °/s) is the
                 /// usual MEMS full scale; raise it for a 4000 °/s gyroscope.
                 max_gyr: f64 = 35.0, "rad/s", [1e-3, 1e5], shared;
+                /// Largest accepted specific-force magnitude; a larger accelerometer sample
+                /// only skips the accelerometer correction (counted in `Rejections::acc`, flag
+                /// 4) and enters no low-pass or detector. The default (1000 m/s², about 102 g)
+                /// is beyond the usual MEMS ranges (±16 g ≈ 157 m/s² up to ±100 g); raise it
+                /// for a high-g sensor.
+                max_acc: f64 = 1000.0, "m/s²", [1.0, 1e12], shared;
+                /// Largest accepted magnetic-field magnitude, in the input's field units; a
+                /// larger sample only skips the magnetometer correction (9D; counted in
+                /// `Rejections::mag`, flag 8). The default 1000 suits µT (1 mT, fifteen times
+                /// the strongest geomagnetic field: only a magnet on the sensor exceeds it)
+                /// and gauss; raise it for raw counts or nT.
+                max_mag: f64 = 1000.0, "field unit", [1e-9, 1e15], shared;
             }
         }
     };
@@ -384,7 +397,12 @@ macro_rules! params_with_screening {
             }, )* ];
             /// The input-screening limits of these parameters.
             pub fn screen_limits(&self) -> $crate::filters::ScreenLimits {
-                $crate::filters::ScreenLimits { max_dt: self.max_dt, max_gyr: self.max_gyr }
+                $crate::filters::ScreenLimits {
+                    max_dt: self.max_dt,
+                    max_gyr: self.max_gyr,
+                    max_acc: self.max_acc,
+                    max_mag: self.max_mag,
+                }
             }
         }
         #[cfg(feature = "std")]
