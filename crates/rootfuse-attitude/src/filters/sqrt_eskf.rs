@@ -157,7 +157,7 @@ use super::upper_factor::{add_diagonal_noise, carlson_update};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
-use crate::blocks::{field_heading_error, magnetic_heading_error, tilt_from_acc};
+use crate::blocks::{field_heading_error, lowpass_gain, magnetic_heading_error, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 
@@ -1012,25 +1012,6 @@ impl<T: Lane> SqrtEskf<T> {
             st.heading_offset_var,
         );
     }
-}
-
-/// `1 − exp(−dt/τ)`: the exact discrete gain of a first-order low-pass for any `dt`.
-fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
-    let tau = tau.max(T::from_f64(1e-6));
-    let x = dt / tau;
-    // exp(−x) via the Lane operations: 1 − exp(−x) = x·(1 − x/2 + x²/6 − x³/24) for small x,
-    // else computed by repeated squaring of exp(−x/16).
-    let y = x * T::from_f64(1.0 / 16.0);
-    let e = T::one()
-        - y * (T::one()
-            - y * (T::from_f64(0.5) - y * (T::from_f64(1.0 / 6.0) - y * T::from_f64(1.0 / 24.0))));
-    let mut e = e.max(T::zero());
-    for _ in 0..4 {
-        e = e * e;
-    }
-    let small = x.simd_lt(T::from_f64(1e-3));
-    let series = x * (T::one() - x * (T::from_f64(0.5) - x * T::from_f64(1.0 / 6.0)));
-    T::select(small, series, T::one() - e).clamp(T::zero(), T::one())
 }
 
 /// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
