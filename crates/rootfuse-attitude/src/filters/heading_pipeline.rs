@@ -145,6 +145,14 @@ pub struct HeadingPipeline<T: Lane> {
 }
 
 impl<T: Lane> HeadingPipeline<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](HeadingPipelineParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &HeadingPipelineParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &HeadingPipelineParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))

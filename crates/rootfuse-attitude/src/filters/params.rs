@@ -213,6 +213,47 @@ pub struct ParamInfo {
     pub doc: &'static str,
 }
 
+/// A parameter value outside its accepted range `[min, max]` (NaN is outside every range):
+/// what [`validate`](crate::filters::MahonyParams::validate) on a parameter struct reports.
+/// Available without `std`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InvalidParam {
+    /// Parameter name.
+    pub name: &'static str,
+    /// The value found.
+    pub value: f64,
+    /// Smallest accepted value (inclusive).
+    pub min: f64,
+    /// Largest accepted value (inclusive).
+    pub max: f64,
+}
+
+impl core::fmt::Display for InvalidParam {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let Self {
+            name,
+            value,
+            min,
+            max,
+        } = self;
+        write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")
+    }
+}
+
+impl core::error::Error for InvalidParam {}
+
+#[cfg(feature = "std")]
+impl From<InvalidParam> for ParamError {
+    fn from(e: InvalidParam) -> Self {
+        Self::OutOfRange {
+            name: e.name,
+            value: e.value,
+            min: e.min,
+            max: e.max,
+        }
+    }
+}
+
 /// Why a parameter could not be set.
 #[cfg(feature = "std")]
 #[derive(Clone, Debug, PartialEq)]
@@ -395,6 +436,20 @@ macro_rules! params_with_screening {
                 default: $default, unit: $unit, min: $min, max: $max,
                 doc: concat!($($fdoc),*).trim_ascii(),
             }, )* ];
+            /// Checks every parameter against its range, as `Params::set` does for one: a
+            /// struct written as a literal (or changed field by field) is checked here, also
+            /// without `std`. The first parameter out of range (or NaN) is the error.
+            pub fn validate(&self) -> Result<(), $crate::filters::InvalidParam> {
+                $( {
+                    let value = $crate::filters::ParamValue::to_f64(self.$field);
+                    if !($min..=$max).contains(&value) {
+                        return Err($crate::filters::InvalidParam {
+                            name: stringify!($field), value, min: $min, max: $max,
+                        });
+                    }
+                } )*
+                Ok(())
+            }
             /// The input-screening limits of these parameters.
             pub fn screen_limits(&self) -> $crate::filters::ScreenLimits {
                 $crate::filters::ScreenLimits {
