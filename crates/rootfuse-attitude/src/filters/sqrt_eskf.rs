@@ -739,8 +739,11 @@ impl<T: Lane> SqrtEskf<T> {
         let turning = (st.rest_gyr_lp - st.bias)
             .norm_squared()
             .simd_gt(c.rest_gyr2);
-        let still =
-            gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2) & s.acc_ok;
+        // A sample without a usable accelerometer (skipped or gated) neither confirms nor
+        // breaks the rest: `acc_for_rest` holds the low-pass there, so its deviation is zero and
+        // the gyroscope alone decides. (Requiring `acc_ok` made one spike restart the
+        // `rest_time` wait.)
+        let still = gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2);
         st.rest_timer = T::select(still, st.rest_timer + s.dt, T::zero());
         self.at_rest()
     }
@@ -914,7 +917,11 @@ impl<T: Lane> SqrtEskf<T> {
         let accepted = accepted0 | accepted1;
         let gated = apply & !accepted;
         self.rejections.gate(gated);
-        self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
+        // Only an accepted measurement ends a rejection period; a sample without a usable
+        // accelerometer holds the timer (resetting it let a spike or a dropped sample postpone
+        // the re-acquisition by up to `acc_reject_time`).
+        let t = self.state.acc_rejected_time;
+        self.state.acc_rejected_time = T::select(gated, t + s.dt, T::select(apply, zero, t));
         Correction {
             dx: core::array::from_fn(|i| dx0[i] + dx1[i]),
             accepted,
