@@ -255,6 +255,9 @@ fn struct_literals_are_validated() {
     assert_eq!(e.name, "max_acc");
     assert!(matches!(
         ParamError::from(e),
-        ParamError::OutOfRange { name: "max_acc", .. }
+        ParamError::OutOfRange {
+            name: "max_acc",
+            ..
+        }
     ));
 }

@@ -215,7 +215,9 @@ impl<T: Lane> ComplementaryReconstruction<T> {
     /// A filter with the given parameters once they pass
     /// [`validate`](ComplementaryReconstructionParams::validate): an invalid set (a struct literal with a value out of
     /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &ComplementaryReconstructionParams) -> Result<Self, crate::filters::InvalidParam> {
+    pub fn try_new(
+        p: &ComplementaryReconstructionParams,
+    ) -> Result<Self, crate::filters::InvalidParam> {
         p.validate()?;
         Ok(Self::new(p))
     }
