@@ -491,3 +491,28 @@ macro_rules! params_with_screening {
     };
 }
 pub(crate) use params_with_screening;
+
+#[cfg(test)]
+mod tests {
+    use crate::filters::{GyroParams, MahonyParams, SqrtEskf, SqrtEskfParams};
+
+    /// `validate` and `try_new` work in the no_std build too (`cargo test -p
+    /// rootfuse-attitude --no-default-features --lib`): a struct literal out of range or NaN
+    /// is refused, naming the parameter; the defaults pass.
+    #[test]
+    fn struct_literals_are_validated_without_std() {
+        let bad = SqrtEskfParams {
+            tau_acc: -1.0,
+            ..SqrtEskfParams::default()
+        };
+        assert_eq!(bad.validate().map_err(|e| e.name), Err("tau_acc"));
+        assert!(SqrtEskf::<f32>::try_new(&bad).is_err());
+        let nan = MahonyParams {
+            max_gyr: f64::NAN,
+            ..MahonyParams::default()
+        };
+        assert_eq!(nan.validate().map_err(|e| e.name), Err("max_gyr"));
+        assert_eq!(SqrtEskfParams::default().validate(), Ok(()));
+        assert_eq!(GyroParams::default().validate(), Ok(()));
+    }
+}
