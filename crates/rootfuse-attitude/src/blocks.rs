@@ -67,7 +67,8 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
 /// use rootfuse_attitude::blocks::lowpass_gain;
 /// assert_eq!(lowpass_gain(0.01_f64, 0.0), 1.0);
 /// assert_eq!(lowpass_gain(0.0_f64, 0.0), 0.0);
-/// assert!((lowpass_gain(1e-9_f64, 1.0) - 1e-9).abs() < 1e-24);
+/// // 1 − exp(−1e-9) = 1e-9 − 5e-19 + …: every digit kept (`1.0 - (-1e-9).exp()` keeps 7).
+/// assert!((lowpass_gain(1e-9_f64, 1.0) - (1e-9 - 5e-19)).abs() < 1e-24);
 /// ```
 #[inline]
 pub fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
