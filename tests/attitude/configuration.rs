@@ -33,7 +33,7 @@ fn defaults_are_values_of_their_kind() {
             );
         }
         // The screening limits are parameters of every filter, never lane-varying.
-        for name in ["max_dt", "max_gyr"] {
+        for name in ["max_dt", "max_gyr", "max_acc", "max_mag"] {
             let info = kind.params().iter().find(|i| i.name == name).unwrap();
             assert!(!info.per_lane, "{} {name}", kind.name());
         }
@@ -221,4 +221,43 @@ fn flagship_starts_from_a_preset_orientation() {
     let mut fresh = spec.build::<f64>();
     fresh.update(&level_sample(), 0.01);
     assert!(fresh.quat().angle_to(preset) > 0.9);
+}
+
+/// `validate()` (no_std) checks a parameter struct as `Params::set` checks one value: a struct
+/// literal with a value out of range or NaN is refused by `validate` and `try_new`, naming the
+/// parameter; the defaults pass; the error converts into the registry's `ParamError`.
+#[test]
+fn struct_literals_are_validated() {
+    use rootfuse_attitude::filters::{
+        Complementary, ComplementaryParams, InvalidParam, Mahony, MahonyParams, SqrtEskf,
+        SqrtEskfParams,
+    };
+    let bad = SqrtEskfParams {
+        gyr_noise: -1.0,
+        ..Default::default()
+    };
+    let err = bad.validate().unwrap_err();
+    assert_eq!(err.name, "gyr_noise");
+    assert!(err.to_string().contains("gyr_noise"), "{err}");
+    assert!(SqrtEskf::<f64>::try_new(&bad).is_err());
+    assert!(SqrtEskf::<f64>::try_new(&SqrtEskfParams::default()).is_ok());
+    let nan = MahonyParams {
+        kp: f64::NAN,
+        ..Default::default()
+    };
+    assert_eq!(nan.validate().unwrap_err().name, "kp");
+    assert!(Mahony::<f32>::try_new(&nan).is_err());
+    let limit = ComplementaryParams {
+        max_acc: 0.0,
+        ..Default::default()
+    };
+    let e: InvalidParam = Complementary::<f64>::try_new(&limit).unwrap_err();
+    assert_eq!(e.name, "max_acc");
+    assert!(matches!(
+        ParamError::from(e),
+        ParamError::OutOfRange {
+            name: "max_acc",
+            ..
+        }
+    ));
 }

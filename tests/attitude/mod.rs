@@ -1,4 +1,5 @@
 //! Quaternions, frames, pre-processing, the filters and their configuration.
+mod bad_samples;
 mod configuration;
 mod filters;
 mod flagship;

@@ -564,6 +564,7 @@ fn state_bytes_are_the_filters_own() {
     };
     let any = Batch::<F8>::new(&FilterSpec::new("gyro").unwrap(), 1).state_bytes_per_channel();
     println!("| filter | f32x8 | f64x4 | X2<f32x8> |");
+    let mut stale = Vec::new();
     for &kind in FilterKind::ALL {
         let spec = FilterSpec::new(kind.name()).unwrap();
         let (a, b, c) = (
@@ -577,13 +578,15 @@ fn state_bytes_are_the_filters_own() {
             "{}: {a} vs {any}",
             kind.name()
         );
-        assert_eq!(
-            documented(kind.name()),
-            Some(vec![a, b, c]),
-            "{}: the crate docs' table is out of date",
-            kind.name()
-        );
+        if documented(kind.name()) != Some(vec![a, b, c]) {
+            stale.push(kind.name());
+        }
     }
+    // Every row is printed before failing, so one run gives the whole new table.
+    assert!(
+        stale.is_empty(),
+        "the crate docs' table is out of date for {stale:?}"
+    );
     println!("| AnyFilter | {any} | |");
     let any_row = docs.lines().find(|l| l.starts_with("//! | any filter as"));
     assert!(

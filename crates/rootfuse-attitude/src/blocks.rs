@@ -1,4 +1,5 @@
-//! Building blocks: orientation from gravity and the magnetic field, gyro integration.
+//! Building blocks: orientation from gravity and the magnetic field, gyro integration, the
+//! first-order low-pass gain.
 //!
 //! All functions return a per-lane validity mask instead of failing: a zero, NaN or infinite
 //! vector, or a degenerate geometry, gives a finite fallback value and a false mask bit.
@@ -43,6 +44,85 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
         Quat::select(small, series, Quat::exp(v))
     };
     (q * e).normalize()
+}
+
+/// The exact discrete gain `k = 1 − exp(−dt/τ)` of a first-order low-pass
+/// `y ← y + k·(x − y)` with time constant `tau` (s) over a step `dt` (s): the one low-pass
+/// discretisation of every filter in this crate.
+///
+/// It is exact for every `dt/τ` from 0 to ∞: `k` is computed as `−expm1(−dt/τ)` (libm, in
+/// `f64` per lane, then rounded once to the lane's precision), so a small `dt/τ` keeps its
+/// digits (`1 − exp` would cancel) and a large one gives 1 rather than diverging. Against
+/// `−expm1(−x)` the result is within one rounding in `f32` and exact in `f64`. Each lane is
+/// computed on its own, so a lane equals the scalar result bit for bit.
+///
+/// Special values, per lane:
+/// - `tau = 0` means **no low-pass**: `k = 1` (the output is the input) for any `dt > 0`;
+///   a negative or NaN `tau` is treated the same way (parameters never give one);
+/// - `dt ≤ 0` or NaN (no time passed, a skipped sample): `k = 0`, nothing is taken in, also
+///   for `tau = 0`;
+/// - `tau = ∞`: `k = 0` (the output holds); `dt = ∞` with a finite `tau`: `k = 1`.
+///
+/// ```
+/// use rootfuse_attitude::blocks::lowpass_gain;
+/// assert_eq!(lowpass_gain(0.01_f64, 0.0), 1.0);
+/// assert_eq!(lowpass_gain(0.0_f64, 0.0), 0.0);
+/// // 1 − exp(−1e-9) = 1e-9 − 5e-19 + …: every digit kept (`1.0 - (-1e-9).exp()` keeps 7).
+/// assert!((lowpass_gain(1e-9_f64, 1.0) - (1e-9 - 5e-19)).abs() < 1e-24);
+/// ```
+#[inline]
+pub fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
+    T::from_fn(|i| {
+        let (dt, tau): (f64, f64) = (dt.extract(i).into(), tau.extract(i).into());
+        // NaN lands on the documented side: a NaN `dt` takes nothing in, a NaN `tau` is no
+        // low-pass.
+        let k = if dt > 0.0 {
+            if tau > 0.0 {
+                -libm::expm1(-dt / tau)
+            } else {
+                1.0
+            }
+        } else {
+            0.0
+        };
+        <T::Scalar as Lane>::from_f64(k)
+    })
+}
+
+/// A [`lowpass_gain`] for one time constant, per lane, cached for the `dt` it was last
+/// computed for: with a constant sample rate (the usual case) the exponential is evaluated
+/// once instead of every sample. The cache is exact (the same bits as a fresh computation),
+/// so it changes no result.
+#[derive(Clone, Copy, Debug)]
+pub struct LowPassGain<T: Lane> {
+    tau: T,
+    dt: T,
+    gain: T,
+}
+
+impl<T: Lane> LowPassGain<T> {
+    /// The gain of time constant `tau` (s, per lane; 0 = no low-pass, see [`lowpass_gain`]).
+    pub fn new(tau: T) -> Self {
+        Self {
+            tau,
+            dt: T::zero(),
+            gain: lowpass_gain(T::zero(), tau),
+        }
+    }
+    /// The time constant, s.
+    pub fn tau(&self) -> T {
+        self.tau
+    }
+    /// `1 − exp(−dt/τ)` per lane for a step `dt` (s); recomputed only when a lane's `dt`
+    /// differs from the last one's.
+    #[inline]
+    pub fn gain(&mut self, dt: T) -> T {
+        if dt.simd_ne(self.dt).any() {
+            self.dt = dt;
+            self.gain = lowpass_gain(dt, self.tau);
+        }
+        self.gain
+    }
 }
 
 /// Rotation vector over one interval with the two-sample coning correction

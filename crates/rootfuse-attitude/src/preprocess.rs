@@ -128,9 +128,11 @@ impl<T: Lane> LowPass<T> {
             hold: Hold::new(),
         }
     }
-    /// The factor `a = dt / (τ + dt)` of a time constant `tau` (s) at sample interval `dt` (s).
+    /// The factor `a = 1 − exp(−dt/τ)` of a time constant `tau` (s) at sample interval `dt`
+    /// (s): the exact discretisation ([`lowpass_gain`](crate::blocks::lowpass_gain)), where
+    /// `dt/(τ + dt)` was first order only. `tau = 0` is no low-pass (`a = 1`).
     pub fn from_time_constant(tau: f64, dt: f64) -> Self {
-        Self::new(dt / (tau + dt))
+        Self::new(crate::blocks::lowpass_gain(dt, tau))
     }
     /// Filters one sample.
     pub fn update(&mut self, x: T) -> T {

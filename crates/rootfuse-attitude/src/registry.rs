@@ -324,7 +324,8 @@ impl FilterSpec {
                 .filter(|info| !info.per_lane)
                 .all(|info| self.get(info.name) == other.get(info.name))
     }
-    /// The input-screening limits (`max_dt`, `max_gyr`) these parameters give the filter.
+    /// The input-screening limits (`max_dt`, `max_gyr`, `max_acc`, `max_mag`) these
+    /// parameters give the filter.
     pub fn screen_limits(&self) -> ScreenLimits {
         self.params.screen_limits()
     }

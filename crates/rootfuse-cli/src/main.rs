@@ -69,7 +69,8 @@ Gaps and bad samples: every filter screens each sample. A time step that is not 
 (a gap longer than `--max-dt`, default 1 s) or a gyroscope reading that is not finite or \
 faster than `max_gyr` (default 35 rad/s, `--param max_gyr=70` for a 4000 °/s sensor) skips \
 the whole sample; a non-finite \
-accelerometer or magnetometer reading skips that correction. Each skip is counted in the \
+accelerometer or magnetometer reading, or one beyond `max_acc` (default 1000 m/s²) or \
+`max_mag` (default 1000, for µT; raise it for nT or raw counts), skips that correction. Each skip is counted in the \
 `rejected:` summary line and, per sample, in the `--flags` column. After a skipped gap the \
 orientation is held, not extrapolated.
 

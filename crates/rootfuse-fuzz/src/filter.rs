@@ -53,8 +53,9 @@ pub(crate) fn sample_from(input: &mut Bytes, single: bool) -> (ImuSample<f64>, f
 /// `|‖q‖ − 1| ≤ 1e-5` (`f32`) or `1e-12` (`f64`); the bias is finite; a sample whose `dt` is
 /// not in `(0, max_dt]` is counted in `dt`, otherwise one whose gyroscope is not finite or
 /// above `max_gyr` is counted in `gyr`, and either leaves quaternion and bias bit for bit as
-/// they were; a usable step with a non-finite or zero accelerometer counts one `acc`
-/// rejection, and in 9D one with a non-finite or zero magnetometer one `mag` rejection.
+/// they were; a usable step with a non-finite, zero or clearly too large (beyond `max_acc`)
+/// accelerometer counts one `acc` rejection, and in 9D one with a non-finite, zero or clearly
+/// too large (beyond `max_mag`) magnetometer one `mag` rejection.
 pub fn filter_update(data: &[u8]) {
     let mut input = Bytes::new(data);
     let spec = spec_from(&mut input);
@@ -65,9 +66,12 @@ pub fn filter_update(data: &[u8]) {
     }
 }
 
-fn unusable(v: Vec3<f64>) -> bool {
+/// Unusable by the screening rule: not finite, zero, or beyond `limit` (by a relative margin
+/// of 1e-4, so that the lane type's rounding of the norm cannot decide the case).
+fn unusable(v: Vec3<f64>, limit: f64) -> bool {
     !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite())
         || (v.x == 0.0 && v.y == 0.0 && v.z == 0.0)
+        || (v.x * v.x + v.y * v.y + v.z * v.z).sqrt() > limit * (1.0 + 1e-4)
 }
 
 fn same_bits<S: Lane<Scalar = S> + Into<f64>>(a: &[S], b: &[S]) -> bool {
@@ -143,7 +147,7 @@ fn run<S: Lane<Scalar = S, Mask = bool> + Into<f64>>(
                 "{name}: skipped sample counted as mag"
             );
         } else {
-            if unusable(s64.acc) {
+            if unusable(s64.acc, limits.max_acc) {
                 assert_eq!(
                     d(r.acc.as_ref()[0], r0.acc.as_ref()[0]),
                     1,
@@ -151,7 +155,7 @@ fn run<S: Lane<Scalar = S, Mask = bool> + Into<f64>>(
                     s64.acc
                 );
             }
-            if nine_d && unusable(s64.mag) {
+            if nine_d && unusable(s64.mag, limits.max_mag) {
                 assert_eq!(
                     d(r.mag.as_ref()[0], r0.mag.as_ref()[0]),
                     1,

@@ -3,7 +3,7 @@
 
 use super::LaneParams;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params, up};
-use crate::blocks::{integrate_gyro, magnetic_heading_error};
+use crate::blocks::{LowPassGain, integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -20,8 +20,10 @@ params! {
 }
 
 /// Gyro propagation, then two first-order corrections in the earth frame: a rotation about a
-/// horizontal axis that turns the measured gravity toward up (rate `dt/tau_acc`), and a
-/// rotation about earth-z that turns the horizontal field toward north (rate `dt/tau_mag`).
+/// horizontal axis that turns the measured gravity toward up by the fraction
+/// `1 − exp(−dt/tau_acc)` of the angle, and a rotation about earth-z that turns the horizontal
+/// field toward north by `1 − exp(−dt/tau_mag)` ([`lowpass_gain`](crate::blocks::lowpass_gain):
+/// exact for any `dt`, where `dt/τ` clipped at 1 was first order only).
 ///
 /// Because the heading correction is a rotation about earth-z, a magnetic disturbance can
 /// never tilt the inclination (unlike filters that feed the magnetometer into all axes).
@@ -29,14 +31,23 @@ params! {
 pub struct Complementary<T: Lane> {
     q: Quat<T>,
     initialized: T::Mask,
-    tau_acc: T,
-    tau_mag: T,
+    /// Correction gains `1 − exp(−dt/τ)` of `tau_acc` and `tau_mag`.
+    k_acc: LowPassGain<T>,
+    k_mag: LowPassGain<T>,
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
 }
 
 impl<T: Lane> Complementary<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](ComplementaryParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &ComplementaryParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &ComplementaryParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))
@@ -48,8 +59,8 @@ impl<T: Lane> Complementary<T> {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(false),
-            tau_acc: p.coef(|p| p.tau_acc),
-            tau_mag: p.coef(|p| p.tau_mag),
+            k_acc: LowPassGain::new(p.coef(|p| p.tau_acc)),
+            k_mag: LowPassGain::new(p.coef(|p| p.tau_mag)),
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
@@ -74,7 +85,7 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
         let mut q = integrate_gyro(q0, s.gyr, s.dt);
 
-        let k_acc = (s.dt / self.tau_acc).min(T::one());
+        let k_acc = self.k_acc.gain(s.dt);
         let tilt = tilt_correction(q.rotate(s.acc)) * k_acc;
         let q_acc = (Quat::from_rotation_vector(tilt) * q).normalize();
         q = Quat::select(s.acc_ok, q_acc, q);
@@ -82,7 +93,7 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
         // 6D is the same for every lane and discards this correction: skipping it changes no bits.
         if self.nine_d {
             let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
-            let k_mag = (s.dt / self.tau_mag).min(T::one());
+            let k_mag = self.k_mag.gain(s.dt);
             let q_mag = (Quat::from_heading(dpsi * k_mag) * q).normalize();
             q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
         }

@@ -94,6 +94,14 @@ pub struct EcfEkf<T: Lane> {
 }
 
 impl<T: Lane> EcfEkf<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](EcfEkfParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &EcfEkfParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &EcfEkfParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))

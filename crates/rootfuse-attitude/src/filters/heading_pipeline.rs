@@ -3,7 +3,7 @@
 use super::LaneParams;
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
-use crate::blocks::{integrate_gyro, true_heading_error};
+use crate::blocks::{LowPassGain, integrate_gyro, true_heading_error};
 use crate::preprocess::{LowPass, MovingMean, MovingMedian, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -130,7 +130,8 @@ pub struct HeadingPipeline<T: Lane> {
     initialized: T::Mask,
     acc_chain: VecChain<T>,
     mag_chain: VecChain<T>,
-    tau_acc: T,
+    /// Inclination-correction gain `1 − exp(−dt/tau_acc)`.
+    k_acc: LowPassGain<T>,
     q_heading: T,
     q_bias: T,
     r_mag: T,
@@ -144,6 +145,14 @@ pub struct HeadingPipeline<T: Lane> {
 }
 
 impl<T: Lane> HeadingPipeline<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](HeadingPipelineParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &HeadingPipelineParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &HeadingPipelineParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))
@@ -167,7 +176,7 @@ impl<T: Lane> HeadingPipeline<T> {
             initialized: <T::Mask as Mask>::splat(false),
             acc_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
             mag_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
-            tau_acc: p.coef(|p| p.tau_acc),
+            k_acc: LowPassGain::new(p.coef(|p| p.tau_acc)),
             q_heading: p.coef(|p| p.q_heading),
             q_bias: p.coef(|p| p.q_bias),
             r_mag: p.coef(|p| p.r_mag),
@@ -217,7 +226,7 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
             .acc_chain
             .update(q_prop.rotate(s.acc), s.acc_ok, s.step);
         let (a_earth, a_ok) = a_earth.try_normalize();
-        let k_acc = (s.dt / self.tau_acc).min(T::one());
+        let k_acc = self.k_acc.gain(s.dt);
         let tilt_full = tilt_correction(a_earth);
         let settled = tilt_full.norm().simd_lt(self.bias_gate) & a_ok & s.acc_ok;
         let tilt = tilt_full * k_acc;

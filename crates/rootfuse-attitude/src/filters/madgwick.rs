@@ -45,6 +45,14 @@ pub struct Madgwick<T: Lane> {
 }
 
 impl<T: Lane> Madgwick<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](MadgwickParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &MadgwickParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &MadgwickParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))

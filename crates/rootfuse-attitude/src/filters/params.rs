@@ -213,6 +213,47 @@ pub struct ParamInfo {
     pub doc: &'static str,
 }
 
+/// A parameter value outside its accepted range `[min, max]` (NaN is outside every range):
+/// what [`validate`](crate::filters::MahonyParams::validate) on a parameter struct reports.
+/// Available without `std`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InvalidParam {
+    /// Parameter name.
+    pub name: &'static str,
+    /// The value found.
+    pub value: f64,
+    /// Smallest accepted value (inclusive).
+    pub min: f64,
+    /// Largest accepted value (inclusive).
+    pub max: f64,
+}
+
+impl core::fmt::Display for InvalidParam {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let Self {
+            name,
+            value,
+            min,
+            max,
+        } = self;
+        write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")
+    }
+}
+
+impl core::error::Error for InvalidParam {}
+
+#[cfg(feature = "std")]
+impl From<InvalidParam> for ParamError {
+    fn from(e: InvalidParam) -> Self {
+        Self::OutOfRange {
+            name: e.name,
+            value: e.value,
+            min: e.min,
+            max: e.max,
+        }
+    }
+}
+
 /// Why a parameter could not be set.
 #[cfg(feature = "std")]
 #[derive(Clone, Debug, PartialEq)]
@@ -323,7 +364,8 @@ pub trait Params: Clone + Default + fmt::Debug {
 /// Declares a parameter struct: each field has a type ([`ParamValue`]: `f64`, `u32`, `bool`
 /// or [`Dof`]), a default written as a number, a unit, a range, a doc, and optionally the
 /// marker `shared` for a real parameter that cannot differ between lanes of one chunk. Every struct also
-/// gets the two input-screening limits `max_dt` and `max_gyr` ([`ScreenLimits`](super::ScreenLimits)).
+/// gets the four input-screening limits `max_dt`, `max_gyr`, `max_acc` and `max_mag`
+/// ([`ScreenLimits`](super::ScreenLimits)).
 macro_rules! params {
     (
         $(#[$meta:meta])*
@@ -342,6 +384,18 @@ macro_rules! params {
                 /// (counted in `Rejections::gyr`). The default (35 rad/s, about 2000 °/s) is the
                 /// usual MEMS full scale; raise it for a 4000 °/s gyroscope.
                 max_gyr: f64 = 35.0, "rad/s", [1e-3, 1e5], shared;
+                /// Largest accepted specific-force magnitude; a larger accelerometer sample
+                /// only skips the accelerometer correction (counted in `Rejections::acc`, flag
+                /// 4) and enters no low-pass or detector. The default (1000 m/s², about 102 g)
+                /// is beyond the usual MEMS ranges (±16 g ≈ 157 m/s² up to ±100 g); raise it
+                /// for a high-g sensor.
+                max_acc: f64 = 1000.0, "m/s²", [1.0, 1e12], shared;
+                /// Largest accepted magnetic-field magnitude, in the input's field units; a
+                /// larger sample only skips the magnetometer correction (9D; counted in
+                /// `Rejections::mag`, flag 8). The default 1000 suits µT (1 mT, fifteen times
+                /// the strongest geomagnetic field: only a magnet on the sensor exceeds it)
+                /// and gauss; raise it for raw counts or nT.
+                max_mag: f64 = 1000.0, "field unit", [1e-9, 1e15], shared;
             }
         }
     };
@@ -382,9 +436,28 @@ macro_rules! params_with_screening {
                 default: $default, unit: $unit, min: $min, max: $max,
                 doc: concat!($($fdoc),*).trim_ascii(),
             }, )* ];
+            /// Checks every parameter against its range, as `Params::set` does for one: a
+            /// struct written as a literal (or changed field by field) is checked here, also
+            /// without `std`. The first parameter out of range (or NaN) is the error.
+            pub fn validate(&self) -> Result<(), $crate::filters::InvalidParam> {
+                $( {
+                    let value = $crate::filters::ParamValue::to_f64(self.$field);
+                    if !($min..=$max).contains(&value) {
+                        return Err($crate::filters::InvalidParam {
+                            name: stringify!($field), value, min: $min, max: $max,
+                        });
+                    }
+                } )*
+                Ok(())
+            }
             /// The input-screening limits of these parameters.
             pub fn screen_limits(&self) -> $crate::filters::ScreenLimits {
-                $crate::filters::ScreenLimits { max_dt: self.max_dt, max_gyr: self.max_gyr }
+                $crate::filters::ScreenLimits {
+                    max_dt: self.max_dt,
+                    max_gyr: self.max_gyr,
+                    max_acc: self.max_acc,
+                    max_mag: self.max_mag,
+                }
             }
         }
         #[cfg(feature = "std")]
@@ -418,3 +491,28 @@ macro_rules! params_with_screening {
     };
 }
 pub(crate) use params_with_screening;
+
+#[cfg(test)]
+mod tests {
+    use crate::filters::{GyroParams, MahonyParams, SqrtEskf, SqrtEskfParams};
+
+    /// `validate` and `try_new` work in the no_std build too (`cargo test -p
+    /// rootfuse-attitude --no-default-features --lib`): a struct literal out of range or NaN
+    /// is refused, naming the parameter; the defaults pass.
+    #[test]
+    fn struct_literals_are_validated_without_std() {
+        let bad = SqrtEskfParams {
+            tau_acc: -1.0,
+            ..SqrtEskfParams::default()
+        };
+        assert_eq!(bad.validate().map_err(|e| e.name), Err("tau_acc"));
+        assert!(SqrtEskf::<f32>::try_new(&bad).is_err());
+        let nan = MahonyParams {
+            max_gyr: f64::NAN,
+            ..MahonyParams::default()
+        };
+        assert_eq!(nan.validate().map_err(|e| e.name), Err("max_gyr"));
+        assert_eq!(SqrtEskfParams::default().validate(), Ok(()));
+        assert_eq!(GyroParams::default().validate(), Ok(()));
+    }
+}

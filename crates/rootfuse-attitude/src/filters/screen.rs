@@ -10,15 +10,27 @@ pub struct ScreenLimits {
     pub max_dt: f64,
     /// Largest accepted angular rate magnitude, rad/s (a saturated gyroscope lies).
     pub max_gyr: f64,
+    /// Largest accepted specific-force magnitude, m/s²: beyond it no accelerometer can have
+    /// measured the sample, so it is a corrupted one and only its correction is skipped.
+    pub max_acc: f64,
+    /// Largest accepted magnetic-field magnitude, in the input's units (the default assumes
+    /// µT or gauss; raw counts or nT need a larger limit).
+    pub max_mag: f64,
 }
 
 impl Default for ScreenLimits {
     fn default() -> Self {
         // 1 s covers any real sample rate with dropouts; 35 rad/s ≈ 2000 °/s, the usual
-        // full-scale range of MEMS gyroscopes.
+        // full-scale range of MEMS gyroscopes. 1000 m/s² ≈ 102 g is beyond the usual MEMS
+        // accelerometer ranges (±16 g ≈ 157 m/s², ±24 g, ±100 g): no body carrying an IMU
+        // meets it without breaking. 1000 field units is 1 mT in µT, fifteen times the
+        // strongest geomagnetic field (65 µT): a field so strong is a magnet on the sensor,
+        // useless for heading either way.
         Self {
             max_dt: 1.0,
             max_gyr: 35.0,
+            max_acc: 1000.0,
+            max_mag: 1000.0,
         }
     }
 }
@@ -34,11 +46,12 @@ pub struct SampleFlags<T: Lane> {
     pub dt: T::Mask,
     /// Skipped whole: gyroscope not finite or faster than `max_gyr`.
     pub gyr: T::Mask,
-    /// Accelerometer correction skipped: not finite or zero.
+    /// Accelerometer correction skipped: not finite, zero or above `max_acc`.
     pub acc: T::Mask,
-    /// Magnetometer correction skipped (9D): absent, not finite or zero.
+    /// Magnetometer correction skipped (9D): absent, not finite, zero or above `max_mag`.
     pub mag: T::Mask,
-    /// A correction refused by the filter's own gate (acceleration norm, innovation test).
+    /// A correction refused by the filter's own gate (acceleration norm, innovation test,
+    /// the flagship's accelerometer spike gate).
     pub acc_gated: T::Mask,
     /// The magnetometer sample was rejected as a disturbed field.
     pub mag_disturbed: T::Mask,
@@ -103,9 +116,10 @@ pub struct Rejections<T: Lane> {
     pub dt: T::Counts,
     /// Whole samples skipped: gyroscope not finite or above `max_gyr`.
     pub gyr: T::Counts,
-    /// Accelerometer corrections skipped: not finite or zero.
+    /// Accelerometer corrections skipped: not finite, zero or above `max_acc`.
     pub acc: T::Counts,
-    /// Magnetometer corrections skipped (9D only): absent, not finite or zero.
+    /// Magnetometer corrections skipped (9D only): absent, not finite, zero or above
+    /// `max_mag`.
     pub mag: T::Counts,
     /// Corrections skipped by the filter's own gate (e.g. acceleration norm, innovation test).
     pub gated: T::Counts,
@@ -147,13 +161,14 @@ pub struct Screened<T: Lane> {
     pub gyr: Vec3<T>,
     /// Time step, s (zero where `!step`).
     pub dt: T,
-    /// Accelerometer usable (and `step`).
+    /// Accelerometer usable (finite, non-zero, at most `max_acc`; and `step`).
     pub acc_ok: T::Mask,
     /// Unit specific force (sensor frame).
     pub acc: Vec3<T>,
     /// Specific-force norm, m/s² (zero where unusable).
     pub acc_norm: T,
-    /// Magnetometer usable (and `step`); false for every 6D sample.
+    /// Magnetometer usable (finite, non-zero, at most `max_mag`; and `step`); false for every
+    /// 6D sample.
     pub mag_ok: T::Mask,
     /// Unit magnetic field (sensor frame).
     pub mag: Vec3<T>,
@@ -191,7 +206,15 @@ impl<T: Lane> Screened<T> {
         T::count(&mut counts.dt, !dt_ok);
         T::count(&mut counts.gyr, dt_ok & !gyr_ok);
 
-        let (acc, acc_unit_ok) = sample.acc.try_normalize();
+        // A sample beyond the physical limit is refused as a non-finite one is: with it the
+        // direction would be right only by luck and any norm-based state (low-passes, rest and
+        // disturbance detectors) would take in an absurd value. `≤` is false for NaN.
+        let (acc, acc_dir_ok) = sample.acc.try_normalize();
+        let acc_unit_ok = acc_dir_ok
+            & sample
+                .acc
+                .norm_squared()
+                .simd_le(T::from_f64(limits.max_acc * limits.max_acc));
         let acc_ok = acc_unit_ok & step;
         T::count(&mut counts.acc, step & !acc_unit_ok);
         counts.last = SampleFlags {
@@ -204,7 +227,12 @@ impl<T: Lane> Screened<T> {
         let up = Vec3::new(zero, zero, T::one());
         let north = Vec3::new(zero, T::one(), zero);
         let (mag_ok, mag, mag_norm) = if with_mag {
-            let (mag, mag_unit_ok) = sample.mag.try_normalize();
+            let (mag, mag_dir_ok) = sample.mag.try_normalize();
+            let mag_unit_ok = mag_dir_ok
+                & sample
+                    .mag
+                    .norm_squared()
+                    .simd_le(T::from_f64(limits.max_mag * limits.max_mag));
             let mag_ok = mag_unit_ok & step;
             (
                 mag_ok,

@@ -66,6 +66,20 @@
 //! wrong (wrong start, long acceleration), so the inclination covariance is re-inflated and
 //! the next measurement is accepted (re-acquisition).
 //!
+//! # Spikes: corrupted accelerometer samples within the screening limit
+//!
+//! The screening refuses a specific force beyond `max_acc`; below it, a corrupted sample (a
+//! bit error, a glitch) would still enter the low-pass, and at 286 Hz with `τ` = 2 s one
+//! sample of 1000 m/s² moves the first stage by 3.5 m/s², a tilt of the low-passed gravity by
+//! degrees for seconds (before the limit and this gate, one `ax = 1e39` on BROAD 02 took the
+//! RMSE from 1.25° to 94°). A sample whose specific force deviates from the
+//! low-passed one (the gravity estimate, compared in the sensor frame) by more than
+//! `acc_spike` (default 300 m/s², beyond anything a ±16 g accelerometer reports) is taken as
+//! corrupted: it is gated (counted, flag 16) and enters neither the low-passes, nor the
+//! rest detector, nor the bias-step detector, nor a correction. Real motion never reaches it
+//! (the largest deviation in the 14 BROAD trials is about 170 m/s², on the tapping trial at
+//! the sensor's ±16 g saturation), so clean data runs bit for bit as before.
+//!
 //! # Rest detection and gyro bias
 //!
 //! Rest is declared when, for at least `rest_time`, the gyro and accelerometer stay within
@@ -143,7 +157,7 @@ use super::upper_factor::{add_diagonal_noise, carlson_update};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
-use crate::blocks::{field_heading_error, magnetic_heading_error, tilt_from_acc};
+use crate::blocks::{field_heading_error, lowpass_gain, magnetic_heading_error, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 
@@ -160,6 +174,13 @@ params! {
         acc_noise: f64 = 0.003, "rad·√s", [1e-9, 10.0];
         /// χ² gate of each scalar inclination innovation, in standard deviations.
         acc_gate: f64 = 6.0, "1", [0.0, 1e6];
+        /// Largest deviation of the specific force from its low-pass (the gravity estimate)
+        /// that is taken as motion. A sample further off is a spike, not an acceleration the
+        /// body made (its velocity change in one sample would be absurd): it is gated (counted
+        /// in `gated`, flag 16) and enters neither the low-pass, nor the rest detector, nor
+        /// the bias. The default is above anything a ±16 g accelerometer can report
+        /// (157 m/s² per axis, 272 m/s² on three saturated axes, plus gravity).
+        acc_spike: f64 = 300.0, "m/s²", [1.0, 1e12];
         /// After this long with every inclination measurement gated, re-inflate and accept.
         acc_reject_time: f64 = 2.0, "s", [0.0, 1e6];
         /// Length of the start-up phase (low-pass time constant ramping up, no gate).
@@ -286,6 +307,8 @@ lane_state! {
         tau_acc: T,
         acc_var: T,
         acc_gate: T,
+        /// `acc_spike²`, (m/s²)².
+        acc_spike2: T,
         acc_reject_time: T,
         /// `startup_time`, at least 1 µs (it divides).
         startup_time: T,
@@ -320,6 +343,7 @@ impl<T: Lane> Coefficients<T> {
             tau_acc: p.coef(|p| p.tau_acc),
             acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
             acc_gate: p.coef(|p| p.acc_gate),
+            acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
             acc_reject_time: p.coef(|p| p.acc_reject_time),
             startup_time: p.coef(|p| p.startup_time.max(1e-6)),
             reacquire_std: p.coef(|p| p.reacquire_std),
@@ -441,6 +465,14 @@ pub struct SqrtEskf<T: Lane> {
 }
 
 impl<T: Lane> SqrtEskf<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](SqrtEskfParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &SqrtEskfParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters in every lane.
     pub fn new(p: &SqrtEskfParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))
@@ -678,6 +710,19 @@ impl<T: Lane> SqrtEskf<T> {
         fresh
     }
 
+    /// Lanes whose accelerometer sample, though within `max_acc`, deviates from the low-passed
+    /// specific force by more than `acc_spike`: a corrupted sample, not motion. Compared in
+    /// the sensor frame through the strapdown rotation of the previous sample (one sample of
+    /// rotation changes the comparison by far less than the threshold). Not before a lane
+    /// is initialised: it has no low-pass yet.
+    fn acc_spike(&self, s: &Screened<T>) -> T::Mask {
+        let st = &self.state;
+        let expected = st.strapdown.rotate_inverse(st.acc_lp);
+        let dev = (s.acc * s.acc_norm - expected).norm_squared();
+        // `>` is false for NaN, but a screened accelerometer is finite where `acc_ok`.
+        s.acc_ok & st.initialized & dev.simd_gt(self.coef.acc_spike2)
+    }
+
     /// Rest detection: deviation of gyro and accelerometer from their own low-pass, and a
     /// small bias-corrected low-passed rate. Returns the lanes at rest.
     fn detect_rest(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
@@ -694,8 +739,11 @@ impl<T: Lane> SqrtEskf<T> {
         let turning = (st.rest_gyr_lp - st.bias)
             .norm_squared()
             .simd_gt(c.rest_gyr2);
-        let still =
-            gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2) & s.acc_ok;
+        // A sample without a usable accelerometer (skipped or gated) neither confirms nor
+        // breaks the rest: `acc_for_rest` holds the low-pass there, so its deviation is zero and
+        // the gyroscope alone decides. (Requiring `acc_ok` made one spike restart the
+        // `rest_time` wait.)
+        let still = gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2);
         st.rest_timer = T::select(still, st.rest_timer + s.dt, T::zero());
         self.at_rest()
     }
@@ -869,7 +917,11 @@ impl<T: Lane> SqrtEskf<T> {
         let accepted = accepted0 | accepted1;
         let gated = apply & !accepted;
         self.rejections.gate(gated);
-        self.state.acc_rejected_time = T::select(gated, self.state.acc_rejected_time + s.dt, zero);
+        // Only an accepted measurement ends a rejection period; a sample without a usable
+        // accelerometer holds the timer (resetting it let a spike or a dropped sample postpone
+        // the re-acquisition by up to `acc_reject_time`).
+        let t = self.state.acc_rejected_time;
+        self.state.acc_rejected_time = T::select(gated, t + s.dt, T::select(apply, zero, t));
         Correction {
             dx: core::array::from_fn(|i| dx0[i] + dx1[i]),
             accepted,
@@ -977,25 +1029,6 @@ impl<T: Lane> SqrtEskf<T> {
     }
 }
 
-/// `1 − exp(−dt/τ)`: the exact discrete gain of a first-order low-pass for any `dt`.
-fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
-    let tau = tau.max(T::from_f64(1e-6));
-    let x = dt / tau;
-    // exp(−x) via the Lane operations: 1 − exp(−x) = x·(1 − x/2 + x²/6 − x³/24) for small x,
-    // else computed by repeated squaring of exp(−x/16).
-    let y = x * T::from_f64(1.0 / 16.0);
-    let e = T::one()
-        - y * (T::one()
-            - y * (T::from_f64(0.5) - y * (T::from_f64(1.0 / 6.0) - y * T::from_f64(1.0 / 24.0))));
-    let mut e = e.max(T::zero());
-    for _ in 0..4 {
-        e = e * e;
-    }
-    let small = x.simd_lt(T::from_f64(1e-3));
-    let series = x * (T::one() - x * (T::from_f64(0.5) - x * T::from_f64(1.0 / 6.0)));
-    T::select(small, series, T::one() - e).clamp(T::zero(), T::one())
-}
-
 /// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
 fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
     let mut v = T::zero();
@@ -1007,7 +1040,12 @@ fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
 
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let mut s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        // A spike is an unusable accelerometer sample from here on: every low-pass, detector
+        // and correction below takes the accelerometer only where `acc_ok`.
+        let spike = self.acc_spike(&s);
+        s.acc_ok &= !spike;
+        self.rejections.gate(spike);
         self.per_dt.refresh(s.dt, &self.coef);
         // Lanes that cannot step keep their whole state; lanes not yet initialised integrate
         // the gyroscope (strapdown only) until the first usable accelerometer sample. When

@@ -10,7 +10,7 @@ pub use drift::{DriftConfig, DriftEstimator, DriftSample};
 
 use super::complementary::tilt_correction;
 use super::{Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, params};
-use crate::blocks::acc_mag_quat;
+use crate::blocks::{LowPassGain, acc_mag_quat};
 use crate::preprocess::{Hampel, LowPass, hampel_threshold, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Vector};
@@ -105,7 +105,7 @@ params! {
 /// - "Compensated quaternion, fused with the accelerometer quaternion by the LS model" is a
 ///   square-root RLS on the quaternion itself with the gyro rotation as its state transition;
 ///   its gain starts near 1 (the first accelerometer quaternion is taken as it is: the
-///   initial attitude) and settles at `dt/(fusion_tau + dt)`. The weight of `q_a` falls as the
+///   initial attitude) and settles at `1 − exp(−dt/fusion_tau)`. The weight of `q_a` falls as the
 ///   specific force departs from gravity (`acc_dev`), our addition within `W = R⁻¹`.
 /// - The quaternion's covariance is forgotten only while it is below its steady state at
 ///   full weight: after a stretch of down-weighted samples the gain never exceeds the nominal
@@ -124,7 +124,8 @@ pub struct LsqFusion<T: Lane> {
     drift: DriftEstimator<T>,
     fusion: Potter<T, 4>,
     q: Quat<T>,
-    inv_fusion_tau: T,
+    /// Forgetting gain `1 − exp(−dt/fusion_tau)` of the quaternion RLS.
+    fusion_gain: LowPassGain<T>,
     acc_weight: T,
     inv_acc_dev: T,
     nine_d: bool,
@@ -140,6 +141,14 @@ const GRAVITY: f64 = 9.81;
 const FUSION_PRIOR: f64 = 1.0;
 
 impl<T: Lane> LsqFusion<T> {
+    /// A filter with the given parameters once they pass
+    /// [`validate`](LsqFusionParams::validate): an invalid set (a struct literal with a value out of
+    /// range, or NaN) is refused instead of run.
+    pub fn try_new(p: &LsqFusionParams) -> Result<Self, crate::filters::InvalidParam> {
+        p.validate()?;
+        Ok(Self::new(p))
+    }
+
     /// A filter with the given parameters.
     pub fn new(p: &LsqFusionParams) -> Self {
         Self::with_lane_params(&LaneParams::uniform(p))
@@ -179,7 +188,7 @@ impl<T: Lane> LsqFusion<T> {
             // P₀ = FUSION_PRIOR·I = I.
             fusion: fusion.expect("unreachable: constant, valid prior"),
             q: Quat::identity(),
-            inv_fusion_tau: lanes.coef(|p| 1.0 / positive(p.fusion_tau, 3.0)),
+            fusion_gain: LowPassGain::new(lanes.coef(|p| positive(p.fusion_tau, 3.0))),
             acc_weight: lanes.coef(|p| {
                 let acc_noise = positive(p.acc_noise, 0.02);
                 1.0 / (acc_noise * acc_noise)
@@ -236,9 +245,11 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         // Forget only while the covariance is below its steady state at full weight,
         // `trace P = 4·(1 − λ)/w` (gain `1 − λ`): after a stretch of down-weighted samples the
         // gain then stays at most the nominal one instead of snapping to the next sample.
-        let k = s.dt * self.inv_fusion_tau;
+        // Forgetting by λ = exp(−dt/τ) settles the gain at 1 − λ, the exact first-order
+        // low-pass gain (λ = 1/(1 + dt/τ) settled at dt/(τ + dt), first order only).
+        let k = self.fusion_gain.gain(s.dt);
         let ceiling = T::from_f64(4.0) * k / (self.acc_weight * T::from_f64(4.0));
-        let lambda = T::select(trace.simd_ge(ceiling), one, one / (k + one));
+        let lambda = T::select(trace.simd_ge(ceiling), one, one - k);
         // No bounds are configured, so the transition is always accepted as a call.
         let _ = self.fusion.predict(&f, lambda);
         let x = self.fusion.estimate();
