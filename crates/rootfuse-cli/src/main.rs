@@ -26,6 +26,7 @@ mod engine;
 mod eval;
 mod filter_args;
 mod filters;
+mod outputs;
 mod plot;
 mod run;
 mod simulate;

@@ -3,6 +3,7 @@
 use crate::Outcome;
 use crate::engine::{Columns, PrecisionArg};
 use crate::filter_args::FilterArgs;
+use crate::outputs::{Ledger, missing_folders, remove_empty, source_of};
 use crate::stream::{Job, Totals, run_columnar, run_csv};
 use clap::Args;
 use rootfuse_attitude::OrientationFilter;
@@ -21,7 +22,7 @@ use std::time::Instant;
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// Exit code after SIGINT or SIGTERM (128 + SIGINT, as shells report an interrupt).
-const EXIT_INTERRUPTED: i32 = 130;
+pub(crate) const EXIT_INTERRUPTED: i32 = 130;
 
 /// Options of `rootfuse run`.
 #[derive(Args)]
@@ -84,6 +85,12 @@ pub struct RunArgs {
     /// filtering (`y_cal = S·(y_raw − h)` per sensor in the file).
     #[arg(long)]
     calibration: Option<PathBuf>,
+    /// Replace existing files in `--out` that rootfuse did not write for the same input
+    /// (without it such a file is refused before anything is written; rootfuse's own
+    /// estimate of the same input, unchanged since, is replaced either way). A symbolic link
+    /// is never replaced nor written through.
+    #[arg(long)]
+    force: bool,
 }
 
 /// Runs the command.
@@ -137,52 +144,81 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         None => Format::Csv,
     };
     let outputs_of_files = output_paths(&files, &args.out, format)?;
+    let mut ledger = Ledger::load(&args.out);
+    for (file, out) in files.iter().zip(&outputs_of_files) {
+        ledger.check(out, &source_of(file), args.force)?;
+    }
     install_signal_handler()?;
     let gaps = if args.strict {
         ImuGaps::Refuse
     } else {
         ImuGaps::Keep
     };
+    let created = missing_folders(&args.out);
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
-    remove_stale(&outputs_of_files, &args.out)?;
-    let calibration = args
-        .calibration
-        .as_deref()
-        .map(crate::calibrate::read_calibration)
-        .transpose()?;
-    let device_specs = args
-        .device_params
-        .as_deref()
-        .map(|p| crate::device_params::DeviceSpecs::read(p, &spec))
-        .transpose()?;
-    if device_specs.is_some() && args.offline {
-        return Err("--device-params runs fleets and CSV recordings online; --offline smooths each file with the run's parameters".into());
-    }
-    let job = Job {
-        device_specs: device_specs.as_ref(),
-        spec: &spec,
-        precision: args.precision.into(),
-        columns: Columns {
-            bias: args.bias,
-            covariance: args.covariance,
-            flags: args.flags,
-        },
-        format,
-        gaps,
-        keep_going: args.keep_going,
-        nine_d: spec.uses_magnetometer(),
-        // `--dof 9` or `--param dof=9` asked for the magnetometer; the filters' default did not.
-        dof_explicit: args.filter.dof_explicit(),
-        calibration: calibration.as_ref(),
-    };
     let start = Instant::now();
-    let totals = if args.offline {
-        smooth_files(&job, &files, &outputs_of_files)?
-    } else if columnar {
-        run_columnar(&job, &files, &outputs_of_files)?
-    } else {
-        run_csv(&job, &files, &outputs_of_files)?
+    let result = (|| -> Result<Totals, String> {
+        remove_stale(&outputs_of_files, &args.out)?;
+        let calibration = args
+            .calibration
+            .as_deref()
+            .map(crate::calibrate::read_calibration)
+            .transpose()?;
+        let device_specs = args
+            .device_params
+            .as_deref()
+            .map(|p| crate::device_params::DeviceSpecs::read(p, &spec))
+            .transpose()?;
+        if device_specs.is_some() && args.offline {
+            return Err("--device-params runs fleets and CSV recordings online; --offline smooths each file with the run's parameters".into());
+        }
+        let job = Job {
+            device_specs: device_specs.as_ref(),
+            spec: &spec,
+            precision: args.precision.into(),
+            columns: Columns {
+                bias: args.bias,
+                covariance: args.covariance,
+                flags: args.flags,
+            },
+            format,
+            gaps,
+            keep_going: args.keep_going,
+            nine_d: spec.uses_magnetometer(),
+            // `--dof 9` or `--param dof=9` asked for the magnetometer; the filters' default
+            // did not.
+            dof_explicit: args.filter.dof_explicit(),
+            calibration: calibration.as_ref(),
+        };
+        let mut staged = Vec::new();
+        let totals = if args.offline {
+            let mut written = Vec::new();
+            let totals = smooth_files(&job, &files, &outputs_of_files, &mut written);
+            for (file, out) in written {
+                ledger.record(&out, &source_of(&file))?;
+            }
+            totals?
+        } else if columnar {
+            run_columnar(&job, &files, &outputs_of_files, &mut staged)?
+        } else {
+            run_csv(&job, &files, &outputs_of_files, &mut staged)?
+        };
+        // Every input ran (or, under --keep-going, failed and was reported): only now do the
+        // estimates take their final names, so that a failed run writes none of them.
+        for (file, staged) in staged {
+            let out = staged.path().to_owned();
+            staged.commit().map_err(|e| e.to_string())?;
+            ledger.record(&out, &source_of(&file))?;
+        }
+        Ok(totals)
+    })();
+    let totals = match result {
+        Ok(t) => t,
+        Err(e) => {
+            remove_empty(&created);
+            return Err(e);
+        }
     };
     let seconds = start.elapsed().as_secs_f64();
     let samples = totals.samples;
@@ -337,7 +373,7 @@ fn output_paths(files: &[PathBuf], out: &Path, format: Format) -> Result<Vec<Pat
 
 /// On SIGINT or SIGTERM: set [`INTERRUPTED`]; the run stops at the end of the block it is
 /// running (see [`interrupted`]).
-fn install_signal_handler() -> Result<(), String> {
+pub(crate) fn install_signal_handler() -> Result<(), String> {
     ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst))
         .map_err(|e| format!("cannot install the signal handler: {e}"))
 }
@@ -349,15 +385,26 @@ pub fn interrupted() -> bool {
 }
 
 /// Ends the process after a signal, with [`EXIT_INTERRUPTED`]. Called with no estimate file
-/// in progress: the files written so far are complete, the others absent.
+/// in progress or staged: a run puts its estimates in place only at its end, so none of
+/// this run's is written (files from earlier runs keep their content).
 pub fn exit_interrupted() -> ! {
-    eprintln!("interrupted: the estimate files written so far are complete");
+    eprintln!(
+        "interrupted: no estimate written (a run writes its estimates when all inputs have run)"
+    );
     std::process::exit(EXIT_INTERRUPTED);
 }
 
 /// `--offline`: one CSV recording at a time, read whole, smoothed forward-backward (f64)
 /// and written, so memory holds one recording (with both passes), not all of them.
-fn smooth_files(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
+///
+/// Unlike the streaming runs, each estimate is put in place as soon as it is smoothed (the
+/// input and output pairs are pushed to `written`): a later failure keeps the earlier ones.
+fn smooth_files(
+    job: &Job,
+    files: &[PathBuf],
+    outs: &[PathBuf],
+    written: &mut Vec<(PathBuf, PathBuf)>,
+) -> Result<Totals, String> {
     let mut totals = Totals::default();
     for (file, out) in files.iter().zip(outs) {
         let result = (|| -> Result<(), String> {
@@ -378,6 +425,7 @@ fn smooth_files(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals
                 exit_interrupted();
             }
             write_estimates(out, &rec.t, &smoothed.quat, &[]).map_err(|e| e.to_string())?;
+            written.push((file.clone(), out.clone()));
             let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
             totals.rejections += r;
             totals.missing(samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64);

@@ -13,7 +13,7 @@ use rootfuse_columnar::{
     BLOCK_ROWS, ColumnarError, Devices, EstimateWriter, FleetBlocks, FleetChunk, FleetReader,
     Format, ImuGaps, Part, estimate_names,
 };
-use rootfuse_io::CsvBlocks;
+use rootfuse_io::{CsvBlocks, Staged};
 use std::path::{Path, PathBuf};
 
 /// What the run asks for, shared by both input kinds.
@@ -99,8 +99,17 @@ struct CsvInput {
     missing_imu: u64,
 }
 
-/// Streams CSV recordings side by side, `files[i]` estimated into `outs[i]`.
-pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
+/// Estimate files complete under their temporary names, with their inputs: put in place by
+/// the caller once every input has run (dropped, they are removed).
+pub type StagedFiles = Vec<(PathBuf, Staged)>;
+
+/// Streams CSV recordings side by side, `files[i]` estimated into `outs[i]` (staged).
+pub fn run_csv(
+    job: &Job,
+    files: &[PathBuf],
+    outs: &[PathBuf],
+    staged: &mut StagedFiles,
+) -> Result<Totals, String> {
     let mut totals = Totals::default();
     // File `i` is device `i`, named after its stem: with `--device-params` every file gets
     // its spec up front (the table's, or the run's).
@@ -177,8 +186,9 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
     let devices = Devices::default();
     while !inputs.is_empty() {
         if interrupted() {
-            // Dropping the writers removes their temporary files.
+            // Dropping the writers and staged files removes their temporary files.
             drop(inputs);
+            staged.clear();
             exit_interrupted();
         }
         let (mut block, ranges) = csv_block(&inputs);
@@ -213,7 +223,8 @@ pub fn run_csv(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals,
             match step {
                 Ok(true) => still.push(input),
                 Ok(false) => {
-                    input.writer.finish().map_err(|e| e.to_string())?;
+                    let file = files[input.device as usize].clone();
+                    staged.push((file, input.writer.close().map_err(|e| e.to_string())?));
                     totals.files += 1;
                     totals.rejections += runner.rejections(input.device);
                     totals.missing(input.missing_imu);
@@ -267,8 +278,13 @@ fn csv_block(inputs: &[CsvInput]) -> (FleetBlock, Vec<std::ops::Range<usize>>) {
     (block, ranges)
 }
 
-/// Streams Parquet/Arrow fleet files in order, `files[i]` estimated into `outs[i]`.
-pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<Totals, String> {
+/// Streams Parquet/Arrow fleet files in order, `files[i]` estimated into `outs[i]` (staged).
+pub fn run_columnar(
+    job: &Job,
+    files: &[PathBuf],
+    outs: &[PathBuf],
+    staged: &mut StagedFiles,
+) -> Result<Totals, String> {
     let mut totals = Totals::default();
     let (labels, specs) = match job.device_specs {
         Some(table) => (table.labels.as_slice(), table.specs.as_slice()),
@@ -300,10 +316,12 @@ pub fn run_columnar(job: &Job, files: &[PathBuf], outs: &[PathBuf]) -> Result<To
             file,
             out,
             &mut file_totals,
+            staged,
         );
         totals.failed_devices += file_totals.failed_devices;
         match result {
-            Ok(()) => {
+            Ok(done) => {
+                staged.push((file.clone(), done));
                 any = true;
                 totals.files += 1;
                 totals.samples += file_totals.samples;
@@ -346,7 +364,8 @@ fn run_fleet_file(
     file: &Path,
     out: &Path,
     totals: &mut Totals,
-) -> Result<(), String> {
+    staged: &mut StagedFiles,
+) -> Result<Staged, String> {
     let text = |e: ColumnarError| e.to_string();
     let mut reader = FleetReader::open(file, job.gaps).map_err(text)?;
     check_mag(job, file, reader.has_mag())?;
@@ -357,6 +376,7 @@ fn run_fleet_file(
     loop {
         if interrupted() {
             drop(writer);
+            staged.clear();
             exit_interrupted();
         }
         let Some((chunk, est)) = blocks
@@ -401,5 +421,5 @@ fn run_fleet_file(
             reader.empty_parts()
         );
     }
-    writer.finish().map_err(text)
+    writer.close().map_err(text)
 }

@@ -53,8 +53,13 @@ fn run_6d_with(input: &Path, out: &Path, extra: &[&str]) -> (Option<i32>, String
 
 /// Every file in `dir` (none may be a temporary file).
 fn files_in(dir: &Path) -> Vec<PathBuf> {
+    // The ledger of the files rootfuse wrote (`.rootfuse-outputs.json`) is not an output.
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|d| d.map(|e| e.unwrap().path()).collect())
+        .map(|d| {
+            d.map(|e| e.unwrap().path())
+                .filter(|p| !p.ends_with(".rootfuse-outputs.json"))
+                .collect()
+        })
         .unwrap_or_default();
     v.sort();
     v

@@ -40,36 +40,3 @@ pub(crate) fn detect(path: &Path, file: &mut std::fs::File) -> std::io::Result<K
         Kind::Parquet
     })
 }
-
-/// A reader that notes when it reaches the end of its input. The IPC stream decoder takes
-/// an end of file between messages as the end of the stream; a stream written to the end
-/// has an end-of-stream marker instead, so reaching the end of the file means the stream
-/// was cut off after its last whole message.
-pub(crate) struct EndAware<R> {
-    inner: R,
-    reached_end: bool,
-}
-
-impl<R> EndAware<R> {
-    pub(crate) fn new(inner: R) -> Self {
-        Self {
-            inner,
-            reached_end: false,
-        }
-    }
-
-    /// True once a read found no more bytes.
-    pub(crate) fn reached_end(&self) -> bool {
-        self.reached_end
-    }
-}
-
-impl<R: Read> Read for EndAware<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        if n == 0 && !buf.is_empty() {
-            self.reached_end = true;
-        }
-        Ok(n)
-    }
-}

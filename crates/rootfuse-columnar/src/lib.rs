@@ -15,7 +15,11 @@
 //! [`FleetReader`]. A null IMU value is read as NaN, a dropped packet (kept for the filter to
 //! skip, or refused with [`ImuGaps::Refuse`]). Parquet files are read one row group at a time
 //! and Arrow IPC files (the file or the stream format, told apart by their first bytes) one
-//! record batch at a time, in blocks of at most [`BLOCK_ROWS`] rows. Row groups and record
+//! record batch at a time, in blocks of at most [`BLOCK_ROWS`] rows. Arrow IPC files are
+//! memory-mapped and decoded in place, so a file written as one record batch of any length
+//! is read a block at a time too (an uncompressed one: a compressed batch is decompressed
+//! whole); such a file must not be truncated by another program while it is read (the
+//! process would end with SIGBUS). Row groups and record
 //! batches without rows are skipped and listed ([`FleetReader::empty_parts`]), not refused.
 //!
 //! Estimates ([`EstimateWriter`]) are `device` (when the input had one, same type), `t`,
@@ -34,6 +38,7 @@
 
 mod error;
 mod kind;
+mod mapped;
 mod params;
 mod reader;
 mod recordings;
@@ -43,7 +48,7 @@ mod writer;
 pub use error::{ColumnarError, Part};
 pub use params::{DeviceParamRow, DeviceParams};
 pub use reader::{BLOCK_ROWS, Devices, FleetChunk, FleetReader, ImuGaps};
-pub use recordings::FleetFileWriter;
+pub use recordings::{FLEET_COLUMNS, FleetFileWriter};
 pub use run::FleetBlocks;
 pub use writer::{EstimateWriter, ROW_GROUP_ROWS, estimate_names};
 

@@ -2,7 +2,8 @@
 
 use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
-use crate::kind::{self, EndAware, Kind};
+use crate::kind::{self, Kind};
+use crate::mapped::{Footer, IpcFile, IpcStream, Mapped, StreamEnd};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, RecordBatchReader};
 use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
 use parquet::arrow::ProjectionMask;
@@ -166,10 +167,12 @@ enum Source {
         current: Option<ParquetRecordBatchReader>,
     },
     IpcFile {
-        reader: arrow::ipc::reader::FileReader<std::io::BufReader<std::fs::File>>,
+        map: Mapped,
+        file: IpcFile,
     },
     IpcStream {
-        reader: arrow::ipc::reader::StreamReader<EndAware<std::io::BufReader<std::fs::File>>>,
+        map: Mapped,
+        stream: IpcStream,
     },
     /// Record batches from memory or another library (an Arrow C stream from Python).
     Batches {
@@ -223,63 +226,52 @@ impl FleetReader {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (source, schema, parts, name) = match kind {
+        let map = |file: &std::fs::File, format: &'static str| {
+            Mapped::open(file).map_err(|e| format_error(path, format, None, e))
+        };
+        let (source, parts, name, (_, has_mag, device_type)) = match kind {
             Kind::IpcFile => {
-                let reader =
-                    arrow::ipc::reader::FileReader::try_new(std::io::BufReader::new(file), None)
-                        .map_err(|e| format_error(path, "Arrow IPC", None, e))?;
-                let schema = reader.schema();
-                let parts = reader.num_batches();
-                (Source::IpcFile { reader }, schema, parts, "Arrow IPC")
+                let map = map(&file, "Arrow IPC")?;
+                let buffer = map.buffer();
+                let footer =
+                    Footer::read(&buffer).map_err(|e| format_error(path, "Arrow IPC", None, e))?;
+                let checked = check_schema(path, &footer.schema)?;
+                let file = IpcFile::new(buffer, footer, checked.0.clone())
+                    .map_err(|e| format_error(path, "Arrow IPC", None, e))?;
+                let parts = file.len();
+                (Source::IpcFile { map, file }, parts, "Arrow IPC", checked)
             }
             Kind::IpcStream => {
-                let input = EndAware::new(std::io::BufReader::new(file));
-                let reader = arrow::ipc::reader::StreamReader::try_new(input, None)
+                let map = map(&file, "Arrow IPC stream")?;
+                let (stream, schema) = IpcStream::open(map.buffer())
                     .map_err(|e| format_error(path, "Arrow IPC stream", None, e))?;
-                let schema = reader.schema();
+                let checked = check_schema(path, &schema)?;
                 // The count is known only at the end.
                 (
-                    Source::IpcStream { reader },
-                    schema,
+                    Source::IpcStream { map, stream },
                     usize::MAX,
                     "Arrow IPC stream",
+                    checked,
                 )
             }
             Kind::Parquet => {
                 let meta = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())
                     .map_err(|e| format_error(path, "Parquet", None, e))?;
-                let schema = meta.schema().clone();
+                let checked = check_schema(path, meta.schema())?;
                 let parts = meta.metadata().num_row_groups();
                 let source = Source::Parquet {
                     file,
                     meta,
-                    projection: Vec::new(),
+                    projection: checked.0.clone(),
                     current: None,
                 };
-                (source, schema, parts, "Parquet")
+                (source, parts, "Parquet", checked)
             }
         };
-        Self::with_source(path.to_owned(), stem, source, name, gaps, parts, &schema)
-    }
-
-    /// A reader of `source` once its schema is checked.
-    fn with_source(
-        file: PathBuf,
-        stem: String,
-        mut source: Source,
-        format: &'static str,
-        gaps: ImuGaps,
-        parts: usize,
-        schema: &Schema,
-    ) -> Result<Self, ColumnarError> {
-        let (projection, has_mag, device_type) = check_schema(&file, schema)?;
-        if let Source::Parquet { projection: p, .. } = &mut source {
-            *p = projection;
-        }
-        Ok(Self {
-            file,
+        let reader = Self {
+            file: path.to_owned(),
             source,
-            format,
+            format: name,
             stem,
             gaps,
             parts,
@@ -289,7 +281,8 @@ impl FleetReader {
             device_type,
             empty_parts: Vec::new(),
             pending: None,
-        })
+        };
+        Ok(reader)
     }
 
     /// Reads the record batches of `reader` (any [`RecordBatchReader`]: batches in memory, an
@@ -325,22 +318,29 @@ impl FleetReader {
         reader: Box<dyn RecordBatchReader + Send>,
         gaps: ImuGaps,
     ) -> Result<Self, ColumnarError> {
-        let schema = reader.schema();
-        Self::with_source(
-            PathBuf::from(name),
-            name.to_string(),
-            Source::Batches { reader },
-            "Arrow",
+        let path = PathBuf::from(name);
+        let (_, has_mag, device_type) = check_schema(&path, &reader.schema())?;
+        Ok(Self {
+            stem: name.to_string(),
+            file: path,
+            source: Source::Batches { reader },
+            format: "Arrow",
             gaps,
-            usize::MAX,
-            &schema,
-        )
+            parts: usize::MAX,
+            part: 0,
+            rows_read: 0,
+            has_mag,
+            device_type,
+            empty_parts: Vec::new(),
+            pending: None,
+        })
     }
 
     /// The file read (the name given to [`from_batches`](Self::from_batches)).
     pub fn path(&self) -> &Path {
         &self.file
     }
+
 
     /// True when the file has magnetometer columns.
     pub fn has_mag(&self) -> bool {
@@ -385,44 +385,48 @@ impl FleetReader {
             }
             let first_row = self.rows_read;
             self.rows_read += batch.num_rows() as u64;
-            return self.convert(&batch, part, first_row, devices).map(Some);
+            let chunk = self.convert(&batch, part, first_row, devices);
+            if let Source::IpcFile { map, .. } | Source::IpcStream { map, .. } = &self.source {
+                // The block's values are copied out: let its pages go.
+                map.release();
+            }
+            return chunk.map(Some);
         }
     }
 
     fn next_batch(&mut self) -> Result<Option<(RecordBatch, Part)>, ColumnarError> {
         let path = self.file.as_path();
         match &mut self.source {
-            Source::IpcFile { reader } => loop {
+            Source::IpcFile { file, .. } => loop {
                 if self.part >= self.parts {
                     return Ok(None);
                 }
                 let part = Part::RecordBatch(self.part);
                 self.part += 1;
-                match reader.next() {
-                    None => return Ok(None),
-                    Some(Err(e)) => return Err(format_error(path, "Arrow IPC", Some(part), e)),
-                    Some(Ok(b)) if b.num_rows() == 0 => {
+                match file.batch(self.part - 1) {
+                    Ok(None) => return Ok(None),
+                    Err(e) => return Err(format_error(path, "Arrow IPC", Some(part), e)),
+                    Ok(Some(b)) if b.num_rows() == 0 => {
                         self.empty_parts.push(self.part - 1);
                     }
-                    Some(Ok(b)) => return Ok(Some((b, part))),
+                    Ok(Some(b)) => return Ok(Some((b, part))),
                 }
             },
-            Source::IpcStream { reader } => loop {
+            Source::IpcStream { stream, .. } => loop {
                 let part = Part::RecordBatch(self.part);
-                match reader.next() {
-                    None if reader.get_ref().reached_end() => {
-                        return Err(format_error(
-                            path,
-                            "Arrow IPC stream",
-                            Some(part),
-                            "the file ends without the end-of-stream marker (truncated)",
+                let error = |e| format_error(path, "Arrow IPC stream", Some(part), e);
+                match stream.next() {
+                    Ok(None) => return Ok(None),
+                    Err(Ok(StreamEnd::NoMarker)) => {
+                        return Err(error(
+                            "the file ends without the end-of-stream marker (truncated)".into(),
                         ));
                     }
-                    None => return Ok(None),
-                    Some(Err(e)) => {
-                        return Err(format_error(path, "Arrow IPC stream", Some(part), e));
+                    Err(Ok(StreamEnd::InsideMessage)) => {
+                        return Err(error("the file ends inside a message (truncated)".into()));
                     }
-                    Some(Ok(b)) => {
+                    Err(Err(e)) => return Err(error(e)),
+                    Ok(Some(b)) => {
                         self.part += 1;
                         if b.num_rows() > 0 {
                             return Ok(Some((b, part)));

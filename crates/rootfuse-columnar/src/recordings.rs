@@ -12,7 +12,9 @@ use rootfuse_io::AtomicFile;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-const COLUMNS: [&str; 14] = [
+/// The columns of a fleet file after `device`, in the order [`FleetFileWriter::write_rows`]
+/// takes them.
+pub const FLEET_COLUMNS: [&str; 14] = [
     "t", "gx", "gy", "gz", "ax", "ay", "az", "mx", "my", "mz", "qw", "qx", "qy", "qz",
 ];
 
@@ -45,7 +47,7 @@ impl FleetFileWriter {
         };
         let mut fields = vec![Field::new(DEVICE, DataType::Int64, false)];
         fields.extend(
-            COLUMNS
+            FLEET_COLUMNS
                 .iter()
                 .map(|&n| Field::new(n, DataType::Float64, false)),
         );
@@ -98,24 +100,47 @@ impl FleetFileWriter {
             })
             .collect();
         for rows in order.chunks(BLOCK_ROWS) {
-            let device =
-                Int64Array::from_iter_values(rows.iter().map(|&(i, _)| first_device + i as i64));
-            let mut arrays: Vec<ArrayRef> = vec![Arc::new(device)];
-            for c in 0..14 {
-                let values = Float64Array::from_iter_values(
-                    rows.iter().map(|&(i, k)| value(&recs[i], k, c)),
-                );
-                arrays.push(Arc::new(values));
-            }
-            let batch = RecordBatch::try_new(self.schema.clone(), arrays)
-                .map_err(|e| self.write_error(&e))?;
-            let result = match &mut self.sink {
-                Sink::Parquet(w) => w.write(&batch).map_err(|e| e.to_string()),
-                Sink::Arrow(w) => w.write(&batch).map_err(|e| e.to_string()),
-            };
-            result.map_err(|e| self.write_error(&e))?;
-            self.rows += rows.len() as u64;
+            let device: Vec<i64> = rows.iter().map(|&(i, _)| first_device + i as i64).collect();
+            let values: Vec<[f64; 14]> = rows
+                .iter()
+                .map(|&(i, k)| std::array::from_fn(|c| value(&recs[i], k, c)))
+                .collect();
+            self.write_rows(&device, &values)?;
         }
+        Ok(())
+    }
+
+    /// Writes rows as one record batch: `device[r]`, then `values[r]` in the order of
+    /// [`FLEET_COLUMNS`] (NaN for an absent magnetometer or truth). A caller that generates
+    /// rows as it goes (`rootfuse simulate`) writes blocks of at most
+    /// [`BLOCK_ROWS`](crate::BLOCK_ROWS) rows this way instead of holding whole recordings
+    /// for [`write_group`](Self::write_group). `device` and `values` must have the same
+    /// length.
+    pub fn write_rows(
+        &mut self,
+        device: &[i64],
+        values: &[[f64; 14]],
+    ) -> Result<(), ColumnarError> {
+        if device.len() != values.len() {
+            return Err(self.write_error(&format_args!(
+                "{} device values for {} rows",
+                device.len(),
+                values.len()
+            )));
+        }
+        let mut arrays: Vec<ArrayRef> = vec![Arc::new(Int64Array::from(device.to_vec()))];
+        for c in 0..14 {
+            let column = Float64Array::from_iter_values(values.iter().map(|v| v[c]));
+            arrays.push(Arc::new(column));
+        }
+        let batch =
+            RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| self.write_error(&e))?;
+        let result = match &mut self.sink {
+            Sink::Parquet(w) => w.write(&batch).map_err(|e| e.to_string()),
+            Sink::Arrow(w) => w.write(&batch).map_err(|e| e.to_string()),
+        };
+        result.map_err(|e| self.write_error(&e))?;
+        self.rows += values.len() as u64;
         Ok(())
     }
 
@@ -143,7 +168,7 @@ impl FleetFileWriter {
     }
 }
 
-/// Column `c` of `COLUMNS` at row `k` (NaN for an absent magnetometer or truth).
+/// Column `c` of [`FLEET_COLUMNS`] at row `k` (NaN for an absent magnetometer or truth).
 fn value(rec: &Recording, k: usize, c: usize) -> f64 {
     match c {
         0 => rec.t[k],

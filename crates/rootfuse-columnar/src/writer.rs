@@ -241,20 +241,26 @@ impl EstimateWriter {
 
     /// Completes the file and renames it into place.
     pub fn finish(self) -> Result<(), ColumnarError> {
+        Ok(self.close()?.commit()?)
+    }
+
+    /// Completes the file without putting it in place: it waits under its temporary name
+    /// until [`Staged::commit`](rootfuse_io::Staged::commit) (removed if dropped), so that a
+    /// run writes all its outputs or none.
+    pub fn close(self) -> Result<rootfuse_io::Staged, ColumnarError> {
         let path = self.path;
         let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
             file: path.clone(),
             message: e.to_string(),
         };
-        match self.sink {
-            Sink::Csv(w) => w.finish()?,
-            Sink::Parquet(w) => w.into_inner().map_err(|e| write_error(&e))?.finish()?,
+        Ok(match self.sink {
+            Sink::Csv(w) => w.close()?,
+            Sink::Parquet(w) => w.into_inner().map_err(|e| write_error(&e))?.close()?,
             Sink::Arrow(mut w) => {
                 w.finish().map_err(|e| write_error(&e))?;
-                w.into_inner().map_err(|e| write_error(&e))?.finish()?;
+                w.into_inner().map_err(|e| write_error(&e))?.close()?
             }
-            Sink::Memory(_) => {}
-        }
-        Ok(())
+            Sink::Memory(_) => rootfuse_io::Staged::nothing(path),
+        })
     }
 }

@@ -54,23 +54,35 @@ impl AtomicFile {
     }
 
     /// Flushes, syncs the data to disk and renames the file into place.
-    pub fn finish(mut self) -> Result<(), WriteError> {
+    pub fn finish(self) -> Result<(), WriteError> {
+        self.close()?.commit()
+    }
+
+    /// Flushes and syncs the data to disk, without the rename: the complete file waits under
+    /// its temporary name until [`Staged::commit`], so that a run of many files can put them
+    /// all in place at its end, or none when one fails (a dropped [`Staged`] removes it).
+    pub fn close(mut self) -> Result<Staged, WriteError> {
         let result = (|| -> Result<(), std::io::Error> {
             let Some(w) = self.writer.take() else {
                 return Ok(());
             };
             let file = w.into_inner().map_err(|e| e.into_error())?;
             // Data on disk before the rename makes it visible: no empty file after a crash.
-            file.sync_all()?;
-            std::fs::rename(&self.tmp, &self.path)
+            file.sync_all()
         })();
-        result.map_err(|source| {
-            let _ = std::fs::remove_file(&self.tmp);
-            WriteError::Io {
-                file: self.path.clone(),
-                source,
+        match result {
+            Ok(()) => Ok(Staged {
+                path: std::mem::take(&mut self.path),
+                tmp: Some(std::mem::take(&mut self.tmp)),
+            }),
+            Err(source) => {
+                let _ = std::fs::remove_file(&self.tmp);
+                Err(WriteError::Io {
+                    file: self.path.clone(),
+                    source,
+                })
             }
-        })
+        }
     }
 
     fn writer(&mut self) -> std::io::Result<&mut std::io::BufWriter<std::fs::File>> {
@@ -93,6 +105,52 @@ impl Drop for AtomicFile {
     fn drop(&mut self) {
         if self.writer.take().is_some() {
             let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// A complete file under its temporary name ([`AtomicFile::close`]), renamed into place by
+/// [`commit`](Self::commit); dropped uncommitted (an error elsewhere in the run, a signal),
+/// it is removed and the final path keeps its previous content or stays absent.
+#[derive(Debug)]
+pub struct Staged {
+    path: PathBuf,
+    tmp: Option<PathBuf>,
+}
+
+impl Staged {
+    /// Nothing staged for `path` (an output kept in memory): committing it does nothing.
+    pub fn nothing(path: impl Into<PathBuf>) -> Self {
+        Self {
+            path: path.into(),
+            tmp: None,
+        }
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the file into place.
+    pub fn commit(mut self) -> Result<(), WriteError> {
+        let Some(tmp) = self.tmp.take() else {
+            return Ok(());
+        };
+        std::fs::rename(&tmp, &self.path).map_err(|source| {
+            let _ = std::fs::remove_file(&tmp);
+            WriteError::Io {
+                file: self.path.clone(),
+                source,
+            }
+        })
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if let Some(tmp) = self.tmp.take() {
+            let _ = std::fs::remove_file(tmp);
         }
     }
 }
@@ -172,5 +230,10 @@ impl CsvEstimateWriter {
     /// Renames the file into place (see [`AtomicFile::finish`]).
     pub fn finish(self) -> Result<(), WriteError> {
         self.file.finish()
+    }
+
+    /// Completes the file without putting it in place ([`AtomicFile::close`]).
+    pub fn close(self) -> Result<Staged, WriteError> {
+        self.file.close()
     }
 }

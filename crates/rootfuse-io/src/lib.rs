@@ -39,6 +39,6 @@
 mod atomic;
 mod csv_format;
 
-pub use atomic::{AtomicFile, CsvEstimateWriter};
+pub use atomic::{AtomicFile, CsvEstimateWriter, Staged};
 pub use csv_format::*;
 pub use rootfuse_attitude::Recording;

@@ -34,7 +34,9 @@ mod scenario;
 pub mod sensor;
 pub mod trajectory;
 
-pub use scenario::{SCENARIOS, scenario, scenario_batch, scenario_names, scenario_simulation};
+pub use scenario::{
+    SCENARIOS, scenario, scenario_batch, scenario_names, scenario_simulation, scenario_stream,
+};
 pub use sensor::{
     BiasStep, EarthField, Frame, IDENTITY, InertialSensor, MagDisturbance, Magnetometer, Mat3,
     SensorModel, Timing,
@@ -159,18 +161,135 @@ impl Simulation {
         Ok((n as usize).max(1))
     }
 
-    /// The sample instants: nominal `k / rate` plus clipped jitter, minus dropped samples.
-    fn sample_times(&self, n: usize) -> Vec<f64> {
+    /// The samples one by one, without holding the recording: a fleet of long recordings
+    /// written to a file (`rootfuse simulate`) needs memory for a block, not for the fleet.
+    /// [`run`](Self::run) is this stream collected, so both give the same bits. Errors only on
+    /// an invalid set-up.
+    pub fn stream(&self) -> Result<SimStream, SimError> {
+        self.timing.validate()?;
+        self.sensor.validate()?;
+        let n = self.nominal_samples()?;
+        let s = &self.sensor;
         let tm = &self.timing;
+        let mut gsteps = s.gyro.bias_steps.clone();
+        let mut asteps = s.acc.bias_steps.clone();
+        gsteps.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        asteps.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        Ok(SimStream {
+            n,
+            k: 0,
+            timing: (tm.jitter_std_s != 0.0 || tm.drop_prob != 0.0)
+                .then(|| rng(self.seed, STREAM_TIMING)),
+            noise: rng(self.seed, STREAM_NOISE),
+            gb: s.gyro.bias,
+            ab: s.acc.bias,
+            gstep: 0,
+            astep: 0,
+            gsteps,
+            asteps,
+            m_earth: s.mag.as_ref().map(|mg| mg.field.vector()),
+            prev_t: 0.0,
+            sim: self.clone(),
+        })
+    }
+
+    /// Runs the simulation. Errors only on an invalid set-up (never on the random draws).
+    pub fn run(&self) -> Result<SimOutput, SimError> {
+        let stream = self.stream()?;
+        let m = stream.size_hint().1.unwrap_or(0);
+        let has_mag = self.sensor.mag.is_some();
+        let mut rec = Recording {
+            name: self.name.clone(),
+            t: Vec::with_capacity(m),
+            gyr: Vec::with_capacity(m),
+            acc: Vec::with_capacity(m),
+            mag: has_mag.then(|| Vec::with_capacity(m)),
+            truth: None,
+            use_mask: None,
+        };
+        let mut out_gb = Vec::with_capacity(m);
+        let mut out_ab = Vec::with_capacity(m);
+        let mut disturbed = Vec::with_capacity(m);
+        let mut truth = Vec::with_capacity(m);
+        for x in stream {
+            if let (Some(out), Some(y)) = (&mut rec.mag, x.mag) {
+                out.push(y);
+            }
+            rec.t.push(x.t);
+            rec.gyr.push(x.gyr);
+            rec.acc.push(x.acc);
+            truth.push(x.truth);
+            out_gb.push(x.gyro_bias);
+            out_ab.push(x.acc_bias);
+            disturbed.push(x.mag_disturbed);
+        }
+        rec.use_mask = Some(vec![true; rec.t.len()]);
+        rec.truth = Some(truth);
+        Ok(SimOutput {
+            recording: rec,
+            gyro_bias: out_gb,
+            acc_bias: out_ab,
+            mag_disturbed: disturbed,
+        })
+    }
+}
+
+/// One sample of a [`SimStream`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimSample {
+    /// Time stamp, s.
+    pub t: f64,
+    /// Gyroscope reading, rad/s.
+    pub gyr: Vec3<f64>,
+    /// Accelerometer reading, m/s².
+    pub acc: Vec3<f64>,
+    /// Magnetometer reading (`None` for a sensor without one).
+    pub mag: Option<Vec3<f64>>,
+    /// True orientation, sensor to earth (ENU), scalar part non-negative.
+    pub truth: Quat<f64>,
+    /// True gyroscope bias, rad/s, sensor frame.
+    pub gyro_bias: Vec3<f64>,
+    /// True accelerometer bias, m/s², sensor frame.
+    pub acc_bias: Vec3<f64>,
+    /// Whether a magnetic disturbance is active.
+    pub mag_disturbed: bool,
+}
+
+/// The samples of a [`Simulation`] in time order ([`Simulation::stream`]); ends after the
+/// last one (and stays ended).
+#[derive(Clone, Debug)]
+pub struct SimStream {
+    sim: Simulation,
+    /// Nominal sample instants, and the next one.
+    n: usize,
+    k: usize,
+    /// Jitter and drops (`None`: regular timing, no draws).
+    timing: Option<ChaCha8Rng>,
+    noise: ChaCha8Rng,
+    gb: Vec3<f64>,
+    ab: Vec3<f64>,
+    gstep: usize,
+    astep: usize,
+    gsteps: Vec<BiasStep>,
+    asteps: Vec<BiasStep>,
+    m_earth: Option<Vec3<f64>>,
+    prev_t: f64,
+}
+
+impl SimStream {
+    /// The next sample instant: nominal `k / rate` plus clipped jitter, dropped samples
+    /// skipped.
+    fn next_time(&mut self) -> Option<f64> {
+        let tm = &self.sim.timing;
         let dt = 1.0 / tm.rate_hz;
         let clip = 0.45 * dt;
-        if tm.jitter_std_s == 0.0 && tm.drop_prob == 0.0 {
-            return (0..n).map(|k| k as f64 * dt).collect();
-        }
-        let mut r = rng(self.seed, STREAM_TIMING);
-        let mut t = Vec::with_capacity(n);
-        for k in 0..n {
+        while self.k < self.n {
+            let k = self.k;
+            self.k += 1;
             let nominal = k as f64 * dt;
+            let Some(r) = &mut self.timing else {
+                return Some(nominal);
+            };
             // Draw both numbers for every sample so that the jitter of sample k does not
             // depend on whether earlier samples were dropped.
             let z: f64 = r.sample(StandardNormal);
@@ -183,107 +302,81 @@ impl Simulation {
             } else {
                 (z * tm.jitter_std_s).clamp(-clip, clip)
             };
-            t.push(nominal + jitter);
+            return Some(nominal + jitter);
         }
-        t
+        None
     }
+}
 
-    /// Runs the simulation. Errors only on an invalid set-up (never on the random draws).
-    pub fn run(&self) -> Result<SimOutput, SimError> {
-        self.timing.validate()?;
-        self.sensor.validate()?;
-        let n = self.nominal_samples()?;
-        let times = self.sample_times(n);
-        let m = times.len();
-        let s = &self.sensor;
-        let mut noise = rng(self.seed, STREAM_NOISE);
+impl Iterator for SimStream {
+    type Item = SimSample;
 
-        let mut rec = Recording {
-            name: self.name.clone(),
-            t: Vec::with_capacity(m),
-            gyr: Vec::with_capacity(m),
-            acc: Vec::with_capacity(m),
-            mag: s.mag.as_ref().map(|_| Vec::with_capacity(m)),
-            truth: Some(Vec::with_capacity(m)),
-            use_mask: Some(vec![true; m]),
-        };
-        let mut out_gb = Vec::with_capacity(m);
-        let mut out_ab = Vec::with_capacity(m);
-        let mut disturbed = Vec::with_capacity(m);
-
-        let mut gb = s.gyro.bias;
-        let mut ab = s.acc.bias;
-        let mut gstep = 0usize;
-        let mut astep = 0usize;
-        let mut gsteps = s.gyro.bias_steps.clone();
-        let mut asteps = s.acc.bias_steps.clone();
-        gsteps.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-        asteps.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-        let m_earth = s.mag.as_ref().map(|mg| mg.field.vector());
-        let mut truth = Vec::with_capacity(m);
-        let mut prev_t = 0.0;
-
-        for &t in &times {
-            // Bias random walk over the actual interval (dropped samples widen it).
-            let dt = (t - prev_t).max(0.0);
-            prev_t = t;
-            if dt > 0.0 {
-                if s.gyro.bias_walk > 0.0 {
-                    gb += normal3(&mut noise) * (s.gyro.bias_walk * dt.sqrt());
-                }
-                if s.acc.bias_walk > 0.0 {
-                    ab += normal3(&mut noise) * (s.acc.bias_walk * dt.sqrt());
-                }
+    fn next(&mut self) -> Option<SimSample> {
+        let t = self.next_time()?;
+        let s = &self.sim.sensor;
+        let noise = &mut self.noise;
+        // Bias random walk over the actual interval (dropped samples widen it).
+        let dt = (t - self.prev_t).max(0.0);
+        self.prev_t = t;
+        if dt > 0.0 {
+            if s.gyro.bias_walk > 0.0 {
+                self.gb += normal3(noise) * (s.gyro.bias_walk * dt.sqrt());
             }
-            while gstep < gsteps.len() && gsteps[gstep].time_s <= t {
-                gb += gsteps[gstep].delta;
-                gstep += 1;
+            if s.acc.bias_walk > 0.0 {
+                self.ab += normal3(noise) * (s.acc.bias_walk * dt.sqrt());
             }
-            while astep < asteps.len() && asteps[astep].time_s <= t {
-                ab += asteps[astep].delta;
-                astep += 1;
-            }
+        }
+        while self.gstep < self.gsteps.len() && self.gsteps[self.gstep].time_s <= t {
+            self.gb += self.gsteps[self.gstep].delta;
+            self.gstep += 1;
+        }
+        while self.astep < self.asteps.len() && self.asteps[self.astep].time_s <= t {
+            self.ab += self.asteps[self.astep].delta;
+            self.astep += 1;
+        }
 
-            let st = self.trajectory.state_at(t);
-            let gyr = s.gyro.sensitivity(st.omega) + gb + noise_of(&mut noise, s.gyro.noise_std);
-            let acc = s.acc.sensitivity(st.specific_force(s.gravity))
-                + ab
-                + noise_of(&mut noise, s.acc.noise_std);
-            let mut any_dist = false;
-            if let (Some(mg), Some(me), Some(out)) = (&s.mag, m_earth, &mut rec.mag) {
-                let mut earth = me;
-                let mut body = Vec3::zero();
-                for d in &mg.disturbances {
-                    let e = d.envelope(t);
-                    if e > 0.0 {
-                        any_dist = true;
-                        match d.frame {
-                            Frame::Earth => earth += d.field * e,
-                            Frame::Sensor => body += d.field * e,
-                        }
+        let st = self.sim.trajectory.state_at(t);
+        let gyr = s.gyro.sensitivity(st.omega) + self.gb + noise_of(noise, s.gyro.noise_std);
+        let acc = s.acc.sensitivity(st.specific_force(s.gravity))
+            + self.ab
+            + noise_of(noise, s.acc.noise_std);
+        let mut any_dist = false;
+        let mut mag = None;
+        if let (Some(mg), Some(me)) = (&s.mag, self.m_earth) {
+            let mut earth = me;
+            let mut body = Vec3::zero();
+            for d in &mg.disturbances {
+                let e = d.envelope(t);
+                if e > 0.0 {
+                    any_dist = true;
+                    match d.frame {
+                        Frame::Earth => earth += d.field * e,
+                        Frame::Sensor => body += d.field * e,
                     }
                 }
-                let y = sensor::mat_vec(&mg.soft_iron, st.q.rotate_inverse(earth))
-                    + mg.hard_iron
-                    + body
-                    + noise_of(&mut noise, mg.noise_std);
-                out.push(sensor::saturate(y, mg.range));
             }
-            rec.t.push(t);
-            rec.gyr.push(sensor::saturate(gyr, s.gyro.range));
-            rec.acc.push(sensor::saturate(acc, s.acc.range));
-            truth.push(canonical(st.q));
-            out_gb.push(gb);
-            out_ab.push(ab);
-            disturbed.push(any_dist);
+            let y = sensor::mat_vec(&mg.soft_iron, st.q.rotate_inverse(earth))
+                + mg.hard_iron
+                + body
+                + noise_of(noise, mg.noise_std);
+            mag = Some(sensor::saturate(y, mg.range));
         }
-        rec.truth = Some(truth);
-        Ok(SimOutput {
-            recording: rec,
-            gyro_bias: out_gb,
-            acc_bias: out_ab,
-            mag_disturbed: disturbed,
+        Some(SimSample {
+            t,
+            gyr: sensor::saturate(gyr, s.gyro.range),
+            acc: sensor::saturate(acc, s.acc.range),
+            mag,
+            truth: canonical(st.q),
+            gyro_bias: self.gb,
+            acc_bias: self.ab,
+            mag_disturbed: any_dist,
         })
+    }
+
+    /// At most the nominal instants left (dropped samples make it fewer).
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let left = self.n - self.k;
+        (if self.timing.is_some() { 0 } else { left }, Some(left))
     }
 }
 

@@ -19,7 +19,7 @@ use super::sensor::{
     SensorModel, Timing,
 };
 use super::trajectory::{Oscillation, Segment, Trajectory, Vibration};
-use super::{GRAVITY, MAX_SAMPLES, STREAM_SETUP, SimError, Simulation, rng};
+use super::{GRAVITY, MAX_SAMPLES, STREAM_SETUP, SimError, SimStream, Simulation, rng};
 use core::f64::consts::PI;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -98,6 +98,17 @@ pub fn scenario(
     Ok(scenario_simulation(name, seed, duration_s, rate_hz)?
         .run()?
         .recording)
+}
+
+/// The named preset's samples one at a time ([`Simulation::stream`]): the same samples as
+/// [`scenario`] without holding the recording.
+pub fn scenario_stream(
+    name: &str,
+    seed: u64,
+    duration_s: f64,
+    rate_hz: f64,
+) -> Result<SimStream, SimError> {
+    scenario_simulation(name, seed, duration_s, rate_hz)?.stream()
 }
 
 /// Runs the named preset once per seed (one channel each), spread over the available cores
