@@ -341,7 +341,6 @@ impl FleetReader {
         &self.file
     }
 
-
     /// True when the file has magnetometer columns.
     pub fn has_mag(&self) -> bool {
         self.has_mag

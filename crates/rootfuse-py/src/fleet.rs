@@ -214,7 +214,7 @@ impl EstimateStream {
         format!(
             "EstimateStream(columns={:?}, read={})",
             self.column_names(),
-            self.estimates.lock().map_or(true, |e| e.is_none())
+            !self.estimates.lock().is_ok_and(|e| e.is_some())
         )
     }
 }
