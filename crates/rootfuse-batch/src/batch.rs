@@ -299,7 +299,7 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         let n = sources.len().min(self.used_lanes());
         let all = if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
         // Lanes past `n` keep the padding sample; `update_masked` decides what they get.
-        let mut tile = vec![(self.pad, self.pad_dt); TILE_STEPS];
+        let mut tile = [(self.pad, self.pad_dt); TILE_STEPS];
         // Per lane, the steps of the current tile its channel has.
         let mut avail = vec![0usize; n];
         let mut k0 = steps.start;
