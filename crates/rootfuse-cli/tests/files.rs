@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 mod common;
+use common::columns::{fleet_columns, replace, write_parquet};
 use common::{Scratch, bin};
 
 fn temp_dir(name: &str) -> Scratch {
@@ -275,8 +276,12 @@ fn a_bad_input_means_no_estimate_without_keep_going() {
 #[test]
 fn signal_writes_no_estimate() {
     let dir = temp_dir("run-signal");
+    // The files of a run are one fleet: the first file's devices must be others than the
+    // simulated 0..20 (else the second file would restart their time).
     let first = dir.join("a.parquet");
-    fleet(&first, "1");
+    let others: Vec<i64> = (0..200).map(|r| 100 + r % 2).collect();
+    let device = std::sync::Arc::new(arrow::array::Int64Array::from(others));
+    write_parquet(&first, replace(fleet_columns(200), "device", device), 64);
     let second = dir.join("b.parquet");
     let (code, _, stderr) = run(&[
         &"simulate",

@@ -4,7 +4,6 @@
 use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::{Float64Type, Int64Type};
 use arrow::record_batch::RecordBatchWriter;
-use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_batch::{Precision, run_recordings};
@@ -13,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 mod common;
+use common::columns::{fleet_columns, floats, replace, write_parquet};
 use common::{Scratch, bin};
 
 fn temp_dir(name: &str) -> Scratch {
@@ -231,53 +231,6 @@ fn csv_streaming_equals_the_library() {
         let est = rootfuse_io::read_estimates(out.join(format!("r{k}.csv"))).unwrap();
         assert_eq!(est.quat, e.quat, "file {k}");
     }
-}
-
-fn floats(v: &[f64]) -> ArrayRef {
-    Arc::new(Float64Array::from(v.to_vec()))
-}
-
-/// A small two-device fleet, time-major, with `t` of type `t_type`: columns by name.
-fn fleet_columns(rows: usize) -> Vec<(&'static str, ArrayRef)> {
-    let device: Vec<i64> = (0..rows).map(|r| (r % 2) as i64).collect();
-    let t: Vec<f64> = (0..rows).map(|r| (r / 2) as f64 * 0.01).collect();
-    let zero = vec![0.0; rows];
-    let g = vec![9.81; rows];
-    vec![
-        ("device", Arc::new(Int64Array::from(device)) as ArrayRef),
-        ("t", floats(&t)),
-        ("gx", floats(&zero)),
-        ("gy", floats(&zero)),
-        ("gz", floats(&zero)),
-        ("ax", floats(&zero)),
-        ("ay", floats(&zero)),
-        ("az", floats(&g)),
-    ]
-}
-
-fn write_parquet(path: &Path, columns: Vec<(&'static str, ArrayRef)>, row_group: usize) {
-    let batch = RecordBatch::try_from_iter(columns).unwrap();
-    let props = parquet::file::properties::WriterProperties::builder()
-        .set_max_row_group_row_count(Some(row_group))
-        .build();
-    let mut w = ArrowWriter::try_new(
-        std::fs::File::create(path).unwrap(),
-        batch.schema(),
-        Some(props),
-    )
-    .unwrap();
-    w.write(&batch).unwrap();
-    w.close().unwrap();
-}
-
-fn replace(
-    mut columns: Vec<(&'static str, ArrayRef)>,
-    name: &str,
-    array: ArrayRef,
-) -> Vec<(&'static str, ArrayRef)> {
-    let slot = columns.iter_mut().find(|(n, _)| *n == name).unwrap();
-    slot.1 = array;
-    columns
 }
 
 /// Runs one bad file: exit code 2, the message contains every `expected` part, and the

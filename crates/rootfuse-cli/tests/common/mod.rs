@@ -2,6 +2,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+pub mod columns;
+
 /// The built `rootfuse` binary.
 pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rootfuse"))
