@@ -244,7 +244,10 @@ impl FleetRunner {
     ///     device: vec![0, 1, 0, 1],
     ///     t: vec![0.0, 0.0, 0.01, 0.01],
     ///     gyr: vec![Vec3::zero(); 4],
-    ///     acc: vec![Vec3::new(0.0, 3.0, 9.3); 4],
+    ///     // The first sample sets the inclination, the second pulls toward another tilt.
+    ///     acc: [[0.0, 3.0, 9.3], [0.0, 3.0, 9.3], [3.0, 0.0, 9.3], [3.0, 0.0, 9.3]]
+    ///         .map(|[x, y, z]| Vec3::new(x, y, z))
+    ///         .to_vec(),
     ///     mag: None,
     /// };
     /// let est = fleet.step(&block, None, OnError::Stop).unwrap();
