@@ -6,13 +6,16 @@
 # x86-64 CPU. Its own target dir keeps it apart from the native builds. The package checks at
 # import that the CPU has every extension the build was compiled with (rootfuse.build_info()),
 # so a native build copied to an older CPU fails with ImportError, not an illegal instruction.
-# Output: target/wheels/rootfuse-*-cp39-abi3-*.whl (one wheel for every CPython >= 3.9).
+# It is linked by zig (the `ziglang` package) against glibc 2.17 and tagged manylinux2014
+# (`manylinux_2_17_x86_64`): it installs on any x86-64 Linux since CentOS 7, not only on
+# systems as new as the build machine (a plain build was tagged manylinux_2_35).
+# Output: target/wheels/rootfuse-*-cp39-abi3-manylinux_2_17_x86_64*.whl (one wheel for every
+# CPython >= 3.9).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python=${PYTHON:-python3}
-if [ ! -x .venv/bin/maturin ]; then
-    [ -x .venv/bin/python ] || "$python" -m venv .venv
-    .venv/bin/python -m pip install --quiet "maturin>=1.5,<2"
-fi
+[ -x .venv/bin/python ] || "$python" -m venv .venv
+.venv/bin/python -m pip install --quiet "maturin>=1.5,<2" ziglang
 RUSTFLAGS="-C target-cpu=x86-64" CARGO_TARGET_DIR=target/portable \
-    .venv/bin/maturin build --release --manifest-path crates/rootfuse-py/Cargo.toml --out target/wheels "$@"
+    .venv/bin/maturin build --release --zig --compatibility manylinux2014 \
+    --manifest-path crates/rootfuse-py/Cargo.toml --out target/wheels "$@"

@@ -19,7 +19,9 @@ fi
 .venv/bin/python -m pip install --quiet "maturin>=1.5,<2" numpy pytest pyarrow
 # Spark 4 (applyInArrow, which needs pandas) for the fleet test in local[2] mode; about 490 MB,
 # 1-3 min to install.
-.venv/bin/python -m pip install --quiet "pyspark>=4.0,<5" "pandas>=2.2,<3"
+# venv-pack packs the virtual environment that test_spark_deploy.py ships to Spark's executor
+# (the README's deployment, run as written).
+.venv/bin/python -m pip install --quiet "pyspark>=4.0,<5" "pandas>=2.2,<3" venv-pack
 echo "== Python: building and installing crates/rootfuse-py (maturin develop)"
 # The dev profile shares target/ with the cargo test above, so only the extension itself is
 # compiled here; `pip install ./crates/rootfuse-py` (release) is what users run.
