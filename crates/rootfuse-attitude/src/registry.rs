@@ -197,7 +197,25 @@ macro_rules! registry {
                             _ => None,
                         })
                         .collect::<Option<std::vec::Vec<$params>>>()?;
-                    Some($filter::with_lane_params(&LaneParams::per_lane(&sets)?))
+                    // A chunk's last lanes may have no channel: they run set 0, unread.
+                    let mut sets = sets;
+                    if let [first, _, ..] = sets.as_slice() && sets.len() < T::LANES {
+                        let pad = first.clone();
+                        sets.resize(T::LANES, pad);
+                    }
+                    Some($filter::with_lane_params(&LaneParams::per_lane(&sets).ok()?))
+                }
+            }
+        )*
+
+        $(
+            impl TryFrom<$params> for FilterSpec {
+                type Error = InvalidParam;
+                /// The spec of this parameter struct's filter, after
+                /// [`validate`]($params::validate).
+                fn try_from(params: $params) -> Result<Self, InvalidParam> {
+                    params.validate()?;
+                    Ok(Self { kind: FilterKind::$variant, params: AnyParams::$variant(params) })
                 }
             }
         )*
@@ -271,6 +289,22 @@ registry! {
 }
 
 /// A filter choice with its parameter values: build it for any lane type.
+///
+/// Made by name with `key=value` overrides ([`new`](Self::new), [`set`](Self::set)), or from
+/// a typed parameter struct (`TryFrom`, validated), which is how typed parameters reach the
+/// batch engine:
+///
+/// ```
+/// use rootfuse_attitude::filters::{MahonyParams, SqrtEskfParams};
+/// use rootfuse_attitude::registry::{FilterKind, FilterSpec};
+///
+/// let typed = SqrtEskfParams { tau_acc: 1.0, ..Default::default() };
+/// let spec = FilterSpec::try_from(typed).unwrap();
+/// assert_eq!(spec.kind(), FilterKind::SqrtEskf);
+/// assert_eq!(spec.get("tau_acc"), Some(1.0));
+/// let refused = FilterSpec::try_from(MahonyParams { kp: -1.0, ..Default::default() });
+/// assert_eq!(refused.unwrap_err().name, "kp");
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilterSpec {
     kind: FilterKind,

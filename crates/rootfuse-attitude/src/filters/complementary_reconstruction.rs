@@ -229,7 +229,7 @@ impl<T: Lane> ComplementaryReconstruction<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, ComplementaryReconstructionParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, ComplementaryReconstructionParams, T>) -> Self {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(false),

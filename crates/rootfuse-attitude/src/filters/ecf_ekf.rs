@@ -109,7 +109,7 @@ impl<T: Lane> EcfEkf<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, EcfEkfParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, EcfEkfParams, T>) -> Self {
         let window = p.first().window as usize;
         Self {
             means: core::array::from_fn(|_| MovingMean::with_len(window)),

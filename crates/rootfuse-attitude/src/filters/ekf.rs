@@ -71,7 +71,7 @@ impl<T: Lane> Ekf<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, EkfParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, EkfParams, T>) -> Self {
         let x = State::new(p.coef(|p| p.init_bias_std * p.init_bias_std));
         Self {
             q: x.q,

@@ -39,7 +39,7 @@ impl<T: Lane> GyroIntegration<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(params: &LaneParams<'_, GyroParams>) -> Self {
+    pub fn with_lane_params(params: &LaneParams<'_, GyroParams, T>) -> Self {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(!params.first().init_from_acc),

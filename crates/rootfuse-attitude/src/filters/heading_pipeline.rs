@@ -160,7 +160,7 @@ impl<T: Lane> HeadingPipeline<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, HeadingPipelineParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, HeadingPipelineParams, T>) -> Self {
         let p0 = [
             T::from_f64(core::f64::consts::PI * core::f64::consts::PI),
             T::zero(),

@@ -66,7 +66,7 @@ impl<T: Lane> Mahony<T> {
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, MahonyParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, MahonyParams, T>) -> Self {
         Self {
             q: Quat::identity(),
             bias: Vec3::zero(),

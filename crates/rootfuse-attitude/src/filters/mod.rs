@@ -58,7 +58,9 @@ pub use lsq_fusion::{
 };
 pub use madgwick::{Madgwick, MadgwickParams};
 pub use mahony::{Mahony, MahonyParams};
-pub use params::{Dof, InvalidParam, LaneParams, ParamInfo, ParamKind, ParamValue};
+pub use params::{
+    Dof, InvalidParam, LaneParams, LaneParamsError, ParamInfo, ParamKind, ParamSet, ParamValue,
+};
 #[cfg(feature = "std")]
 pub use params::{ParamError, Params};
 pub(crate) use params::{params, params_with_screening};

@@ -132,21 +132,21 @@ impl ParamValue for Dof {
     }
 }
 
-/// The parameter sets of a filter's lanes: one set shared by every lane, or one set per
-/// lane (lane `i` takes set `i % len`), so that channels with different parameters can share
-/// one SIMD chunk.
+/// The parameter sets of a filter's lanes `T`: one set shared by every lane, or one set per
+/// lane, so that channels with different parameters can share one SIMD chunk.
 ///
 /// Real-valued parameters become per-lane coefficients ([`coef`](Self::coef)); the ones that
 /// shape the computation itself — `dof`, switches, whole numbers (window lengths) and the
-/// screening limits — are taken from the first set, so every set must agree on them (the
-/// registry's `FilterSpec::same_structure` says whether two specs can share a chunk).
+/// screening limits — are one value for the whole chunk, so [`per_lane`](Self::per_lane)
+/// refuses sets that differ in one of them (the registry's `FilterSpec::same_structure` says
+/// whether two specs can share a chunk).
 ///
 /// ```
-/// use rootfuse_attitude::filters::{LaneParams, Mahony, MahonyParams};
-/// use rootfuse_attitude::{ImuSample, OrientationFilter, Vec3};
+/// use rootfuse_attitude::filters::{LaneParams, LaneParamsError, Mahony, MahonyParams};
+/// use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Vec3};
 /// use rootfuse_lane::wide::f32x8;
 ///
-/// let sets: Vec<MahonyParams> = (0..8)
+/// let mut sets: Vec<MahonyParams> = (0..8)
 ///     .map(|i| MahonyParams { kp: 0.1 * (i + 1) as f64, ..Default::default() })
 ///     .collect();
 /// let mut lanes = Mahony::<f32x8>::with_lane_params(&LaneParams::per_lane(&sets).unwrap());
@@ -155,39 +155,133 @@ impl ParamValue for Dof {
 /// lanes.update(&ImuSample::six_d(v(0.1, 0.0, 0.0), v(0.0, 1.0, 9.8)), f32x8::splat(0.01));
 /// one.update(&ImuSample::six_d(Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 1.0, 9.8)), 0.01);
 /// assert_eq!(lanes.quat().lane(3), one.quat());
+///
+/// // A chunk has one `dof`: a set that differs is refused, naming its lane and the key.
+/// sets[5].dof = Dof::Six;
+/// let refused = LaneParams::<_, f32x8>::per_lane(&sets).unwrap_err();
+/// assert_eq!(refused, LaneParamsError::Structural { lane: 5, name: "dof" });
 /// ```
-#[derive(Clone, Copy, Debug)]
-pub struct LaneParams<'a, P> {
+#[derive(Debug)]
+pub struct LaneParams<'a, P, T> {
     sets: &'a [P],
+    lanes: core::marker::PhantomData<fn() -> T>,
 }
 
-impl<'a, P> LaneParams<'a, P> {
-    /// One set for every lane.
+// Not derived: a derive would ask `T: Clone`, which the lane types are but a generic caller
+// would have to state.
+impl<P, T> Clone for LaneParams<'_, P, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<P, T> Copy for LaneParams<'_, P, T> {}
+
+impl<'a, P: ParamSet, T: Lane> LaneParams<'a, P, T> {
+    /// One set for every lane (not validated here: `try_new` on the filter does that).
     pub fn uniform(p: &'a P) -> Self {
         Self {
             sets: core::slice::from_ref(p),
+            lanes: core::marker::PhantomData,
         }
     }
-    /// One set per lane (lane `i` takes `sets[i % sets.len()]`); `None` for no sets.
-    pub fn per_lane(sets: &'a [P]) -> Option<Self> {
-        (!sets.is_empty()).then_some(Self { sets })
+    /// One set per lane (`sets[i]` for lane `i`), or one set for all (`sets.len() == 1`).
+    ///
+    /// Refused: a count other than 1 or `T::LANES`, a set out of range
+    /// ([`validate`](crate::filters::MahonyParams::validate)), and a set that differs from
+    /// set 0 in a parameter the lanes of one chunk share ([`ParamInfo::per_lane`] false); the
+    /// error names the lane and the parameter.
+    pub fn per_lane(sets: &'a [P]) -> Result<Self, LaneParamsError> {
+        if sets.len() != 1 && sets.len() != T::LANES {
+            return Err(LaneParamsError::Count {
+                sets: sets.len(),
+                lanes: T::LANES,
+            });
+        }
+        for (lane, set) in sets.iter().enumerate() {
+            set.validate_set()
+                .map_err(|error| LaneParamsError::Invalid { lane, error })?;
+            if let Some(name) = sets[0].structural_difference(set) {
+                return Err(LaneParamsError::Structural { lane, name });
+            }
+        }
+        Ok(Self {
+            sets,
+            lanes: core::marker::PhantomData,
+        })
     }
     /// The first set: where the structural parameters come from.
     pub fn first(&self) -> &'a P {
         &self.sets[0]
     }
-    /// Every set.
+    /// Every set: one, or one per lane.
     pub fn sets(&self) -> &'a [P] {
         self.sets
     }
     /// A per-lane coefficient `f(set)`, computed in `f64` and rounded to the lane type once:
     /// lane `i` holds exactly what a scalar filter built from its set holds.
-    pub fn coef<T: Lane>(&self, f: impl Fn(&P) -> f64) -> T {
+    pub fn coef(&self, f: impl Fn(&P) -> f64) -> T {
         match self.sets {
             [one] => T::from_f64(f(one)),
-            sets => T::from_fn(|i| T::from_f64(f(&sets[i % sets.len()])).extract(0)),
+            // `per_lane` made `sets.len() == T::LANES`.
+            sets => T::from_fn(|i| T::from_f64(f(&sets[i])).extract(0)),
         }
     }
+}
+
+/// Why [`LaneParams::per_lane`] refused a list of parameter sets. Available without `std`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LaneParamsError {
+    /// The number of sets is neither 1 nor the lane count.
+    Count {
+        /// Sets given.
+        sets: usize,
+        /// Lanes of the filter's lane type.
+        lanes: usize,
+    },
+    /// The set of `lane` differs from set 0 in a parameter every lane of a chunk shares.
+    Structural {
+        /// The lane (index into the sets).
+        lane: usize,
+        /// The parameter.
+        name: &'static str,
+    },
+    /// The set of `lane` has a parameter outside its range.
+    Invalid {
+        /// The lane (index into the sets).
+        lane: usize,
+        /// The parameter and its range.
+        error: InvalidParam,
+    },
+}
+
+impl core::fmt::Display for LaneParamsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Count { sets, lanes } => write!(
+                f,
+                "{sets} parameter sets for {lanes} lanes: give one set, or one per lane"
+            ),
+            Self::Structural { lane, name } => write!(
+                f,
+                "lane {lane}: parameter `{name}` differs from lane 0's; lanes of one chunk \
+                 share it (run such channels in chunks of their own)"
+            ),
+            Self::Invalid { lane, error } => write!(f, "lane {lane}: {error}"),
+        }
+    }
+}
+
+impl core::error::Error for LaneParamsError {}
+
+/// A filter's parameter struct, also without `std`: the range check and which parameters
+/// the lanes of one chunk must share. Every `*Params` struct implements it.
+pub trait ParamSet: Clone {
+    /// Checks every parameter against its range (the struct's own `validate`).
+    fn validate_set(&self) -> Result<(), InvalidParam>;
+    /// The first parameter that the lanes of one chunk share ([`ParamInfo::per_lane`]
+    /// false) and that differs between `self` and `other`; `None` when both can run in one
+    /// chunk.
+    fn structural_difference(&self, other: &Self) -> Option<&'static str>;
 }
 
 /// One parameter's description.
@@ -460,6 +554,20 @@ macro_rules! params_with_screening {
                 }
             }
         }
+        impl $crate::filters::ParamSet for $name {
+            fn validate_set(&self) -> Result<(), $crate::filters::InvalidParam> {
+                self.validate()
+            }
+            fn structural_difference(&self, other: &Self) -> Option<&'static str> {
+                $( if !$crate::filters::params_with_screening!(@per_lane $ty $(, $shared)?)
+                    && $crate::filters::ParamValue::to_f64(self.$field)
+                        != $crate::filters::ParamValue::to_f64(other.$field)
+                {
+                    return Some(stringify!($field));
+                } )*
+                None
+            }
+        }
         #[cfg(feature = "std")]
         impl $crate::filters::Params for $name {
             fn info() -> &'static [$crate::filters::ParamInfo] {
@@ -494,7 +602,9 @@ pub(crate) use params_with_screening;
 
 #[cfg(test)]
 mod tests {
-    use crate::filters::{GyroParams, MahonyParams, SqrtEskf, SqrtEskfParams};
+    use crate::filters::{
+        Dof, GyroParams, LaneParams, LaneParamsError, MahonyParams, SqrtEskf, SqrtEskfParams,
+    };
 
     /// `validate` and `try_new` work in the no_std build too (`cargo test -p
     /// rootfuse-attitude --no-default-features --lib`): a struct literal out of range or NaN
@@ -514,5 +624,41 @@ mod tests {
         assert_eq!(nan.validate().map_err(|e| e.name), Err("max_gyr"));
         assert_eq!(SqrtEskfParams::default().validate(), Ok(()));
         assert_eq!(GyroParams::default().validate(), Ok(()));
+    }
+
+    /// `LaneParams::per_lane` (no_std too) takes one set or one per lane, each in range and
+    /// agreeing with set 0 on every shared parameter; the error names the lane and the key.
+    #[test]
+    fn per_lane_sets_are_refused_where_lanes_cannot_follow_them() {
+        type Lanes = rootfuse_lane::wide::f32x8;
+        let base = SqrtEskfParams::default();
+        let sets = |change: &dyn Fn(&mut SqrtEskfParams)| {
+            let mut sets = [(); 8].map(|_| base.clone());
+            change(&mut sets[6]);
+            sets
+        };
+        let per_lane = |sets: &[SqrtEskfParams]| LaneParams::<_, Lanes>::per_lane(sets).map(|_| ());
+        // Real parameters vary per lane.
+        assert_eq!(per_lane(&sets(&|p| p.gyr_noise *= 2.0)), Ok(()));
+        assert_eq!(per_lane(&sets(&|p| p.tau_acc = 0.0)), Ok(()));
+        assert_eq!(per_lane(core::slice::from_ref(&base)), Ok(()));
+        // Structural ones do not: dof, switches, screening limits.
+        for (change, name) in [
+            (&(|p: &mut SqrtEskfParams| p.dof = Dof::Six) as &dyn Fn(&mut SqrtEskfParams), "dof"),
+            (&|p| p.max_dt *= 2.0, "max_dt"),
+            (&|p| p.max_gyr *= 2.0, "max_gyr"),
+            (&|p| p.max_acc *= 2.0, "max_acc"),
+        ] {
+            let refused = per_lane(&sets(change));
+            assert_eq!(refused, Err(LaneParamsError::Structural { lane: 6, name }));
+        }
+        let invalid = per_lane(&sets(&|p| p.gyr_noise = -1.0));
+        assert!(matches!(invalid, Err(LaneParamsError::Invalid { lane: 6, error }) if error.name == "gyr_noise"));
+        // Neither one set nor one per lane: refused, never wrapped or cut.
+        for n in [0, 2, 3, 7, 9, 16] {
+            let many = [(); 16].map(|_| base.clone());
+            let refused = per_lane(&many[..n]);
+            assert_eq!(refused, Err(LaneParamsError::Count { sets: n, lanes: 8 }));
+        }
     }
 }

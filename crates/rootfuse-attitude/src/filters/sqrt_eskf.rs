@@ -336,7 +336,7 @@ lane_state! {
 }
 
 impl<T: Lane> Coefficients<T> {
-    fn new(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
+    fn new(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {
         Self {
             gyr_noise: p.coef(|p| p.gyr_noise),
             bias_walk: p.coef(|p| p.bias_walk),
@@ -480,7 +480,7 @@ impl<T: Lane> SqrtEskf<T> {
 
     /// A filter whose lanes may have different parameters (see [`LaneParams`]); `dof` and
     /// the screening limits are those of the first set.
-    pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams>) -> Self {
+    pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {
         let coef = Coefficients::new(p);
         let per_dt = PerDt::new(&coef);
         let zero = T::zero();

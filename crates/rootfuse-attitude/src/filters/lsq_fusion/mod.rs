@@ -157,7 +157,7 @@ impl<T: Lane> LsqFusion<T> {
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, the denoiser's and the drift estimator's, marked `shared`, and the
     /// screening limits) come from the first set.
-    pub fn with_lane_params(lanes: &LaneParams<'_, LsqFusionParams>) -> Self {
+    pub fn with_lane_params(lanes: &LaneParams<'_, LsqFusionParams, T>) -> Self {
         let p = lanes.first();
         let nine = p.dof.uses_magnetometer();
         let fusion = Potter::with_isotropic_prior(
