@@ -233,3 +233,48 @@ fn bad_input_is_refused() {
         "{err}"
     );
 }
+
+/// One glitch (1e6 or 1e200 on one axis) or a burst of 1 % of the readings off the sphere
+/// (a spike train at twice the field) gives the clean fit within its tolerance (offset 0.5 %
+/// of the field, `S` 1 %), and the fit names the rows it left out. A `norm` that is not a
+/// positive finite number is refused.
+#[test]
+fn glitches_and_outlier_bursts_are_left_out_and_named() {
+    let clean = rotating(11, 200.0, SOFT, HARD);
+    let reference = fit_known_norm(&clean);
+    assert!(reference.outliers.is_empty(), "{:?}", reference.outliers);
+    let close = |fit: &rootfuse_calibration::EllipsoidFit, what: &str| {
+        let h = (fit.calibration.offset - reference.calibration.offset).norm() / FIELD;
+        let s = frobenius_relative(&fit.calibration, &reference.calibration.matrix.m);
+        assert!(h < 0.005 && s < 0.01, "{what}: offset {h:.2e}, S {s:.2e}");
+        assert_eq!(fit.model, FittedModel::Full, "{what}");
+    };
+    for glitch in [1e6, 1e200, -1e6] {
+        let mut mag = clean.clone();
+        mag[5000].x = glitch;
+        let fit = fit_known_norm(&mag);
+        close(&fit, &format!("glitch {glitch}"));
+        assert_eq!(fit.outliers, vec![5000], "glitch {glitch}");
+    }
+    // 1 % of the rows, in bursts of 20, read the field at twice its size.
+    let mut mag = clean.clone();
+    let mut burst = Vec::new();
+    for start in (1000..clean.len()).step_by(2000) {
+        for row in start..start + 20 {
+            mag[row] = (mag[row] - Vec3::from_array(HARD)) * 2.0 + Vec3::from_array(HARD);
+            burst.push(row);
+        }
+    }
+    assert_eq!((burst.len(), clean.len() / 100), (200, 200));
+    let fit = fit_known_norm(&mag);
+    close(&fit, "1 % burst");
+    assert_eq!(fit.outliers, burst);
+    for norm in [0.0, -5.0, f64::NAN, f64::INFINITY] {
+        let options = FitOptions {
+            norm: Some(norm),
+            ..FitOptions::default()
+        };
+        let err = fit_ellipsoid(&clean, &options).unwrap_err();
+        assert!(matches!(err, CalibrationError::InvalidNorm { .. }), "{norm}: {err}");
+    }
+}

@@ -631,21 +631,26 @@ fn metric_rmse_mask_nan_and_errors() {
         "uncounted samples still have errors"
     );
 
-    // A non-finite estimate on a counted sample makes the RMSE NaN (never silently skipped).
-    let mut bad = est.clone();
-    bad[2] = Quat::new(f64::NAN, 0.0, 0.0, 0.0);
-    assert!(
-        rmse(&bad, &truth, Some(&mask), Alignment::NineD)
-            .unwrap()
-            .total
-            .is_nan()
-    );
-    assert!(
-        rmse(&bad, &truth, Some(&mask), Alignment::SixD)
-            .unwrap()
-            .total
-            .is_nan()
-    );
+    // A non-finite, zero or unnormalised estimate on a counted sample is refused, naming
+    // the row (never silently skipped, scored as perfect or normalised); on a sample that
+    // does not count (row 1) it is not looked at.
+    for q in [
+        Quat::new(f64::NAN, 0.0, 0.0, 0.0),
+        Quat::new(0.0, 0.0, 0.0, 0.0),
+        Quat::from_array(est[2].to_array().map(|c| 2.0 * c)),
+    ] {
+        for mode in [Alignment::NineD, Alignment::SixD] {
+            let mut bad = est.clone();
+            bad[2] = q;
+            assert!(matches!(
+                rmse(&bad, &truth, Some(&mask), mode),
+                Err(MetricsError::NotAnOrientation { row: 2, .. })
+            ));
+            let mut uncounted = est.clone();
+            uncounted[1] = q;
+            assert!(rmse(&uncounted, &truth, Some(&mask), mode).is_ok());
+        }
+    }
 
     assert!(matches!(
         rmse(&est[..3], &truth, None, Alignment::NineD),

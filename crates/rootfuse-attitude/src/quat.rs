@@ -76,6 +76,19 @@ impl<T: Lane> Quat<T> {
     pub fn to_array(self) -> [T; 4] {
         [self.w, self.x, self.y, self.z]
     }
+    /// From an array `[w, x, y, z]` (scalar first, as [`to_array`](Self::to_array) gives
+    /// it), not normalised; also `Quat::from([w, x, y, z])`.
+    ///
+    /// ```
+    /// use rootfuse_attitude::Quat;
+    /// let q = Quat::from_array([1.0_f64, 0.0, 0.0, 0.0]);
+    /// assert_eq!(q, Quat::identity());
+    /// assert_eq!(<[f64; 4]>::from(q), [1.0, 0.0, 0.0, 0.0]);
+    /// ```
+    #[inline]
+    pub fn from_array(q: [T; 4]) -> Self {
+        Self::new(q[0], q[1], q[2], q[3])
+    }
     /// The conjugate `[w, -x, -y, -z]` (the inverse rotation for a unit quaternion).
     #[inline]
     pub fn conj(self) -> Self {
@@ -134,8 +147,12 @@ impl<T: Lane> Quat<T> {
         self.w.is_finite() & self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
     }
     /// Lane `i` as a scalar quaternion.
+    ///
+    /// # Panics
+    /// If `i >= T::LANES` (a programming error, like an index out of bounds).
     #[inline]
     pub fn lane(self, i: usize) -> Quat<T::Scalar> {
+        assert!(i < T::LANES, "lane {i} of a {}-lane quaternion", T::LANES);
         Quat::new(
             self.w.extract(i),
             self.x.extract(i),
@@ -410,6 +427,20 @@ impl<T: Lane> Quat<T> {
     pub fn from_heading(psi: T) -> Self {
         let (s, c) = (psi * T::from_f64(0.5)).sin_cos();
         Self::new(c, T::zero(), T::zero(), s)
+    }
+}
+
+impl<T: Lane> From<[T; 4]> for Quat<T> {
+    /// `[w, x, y, z]`, not normalised.
+    fn from(q: [T; 4]) -> Self {
+        Self::from_array(q)
+    }
+}
+
+impl<T: Lane> From<Quat<T>> for [T; 4] {
+    /// `[w, x, y, z]`.
+    fn from(q: Quat<T>) -> Self {
+        q.to_array()
     }
 }
 

@@ -35,7 +35,14 @@ impl<T: Lane> Vec3<T> {
     pub fn to_array(self) -> [T; 3] {
         [self.x, self.y, self.z]
     }
-    /// From an array `[x, y, z]`.
+    /// From an array `[x, y, z]`; also `Vec3::from([x, y, z])`.
+    ///
+    /// ```
+    /// use rootfuse_attitude::Vec3;
+    /// let v = Vec3::from([0.0_f32, 0.0, 9.81]);
+    /// assert_eq!(v.z, 9.81);
+    /// assert_eq!(<[f32; 3]>::from(v), [0.0, 0.0, 9.81]);
+    /// ```
     #[inline]
     pub fn from_array(v: [T; 3]) -> Self {
         Self::new(v[0], v[1], v[2])
@@ -96,8 +103,12 @@ impl<T: Lane> Vec3<T> {
         self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
     }
     /// Lane `i` as a scalar vector.
+    ///
+    /// # Panics
+    /// If `i >= T::LANES` (a programming error, like an index out of bounds).
     #[inline]
     pub fn lane(self, i: usize) -> Vec3<T::Scalar> {
+        assert!(i < T::LANES, "lane {i} of a {}-lane vector", T::LANES);
         Vec3::new(self.x.extract(i), self.y.extract(i), self.z.extract(i))
     }
     /// Builds a lane vector from one scalar vector per lane.
@@ -117,6 +128,20 @@ impl<T: Lane> Vec3<T> {
     /// Largest absolute component over all lanes (diagnostics, tests).
     pub fn max_abs(self) -> f64 {
         self.to_vector().max_abs()
+    }
+}
+
+impl<T: Lane> From<[T; 3]> for Vec3<T> {
+    /// `[x, y, z]`.
+    fn from(v: [T; 3]) -> Self {
+        Self::from_array(v)
+    }
+}
+
+impl<T: Lane> From<Vec3<T>> for [T; 3] {
+    /// `[x, y, z]`.
+    fn from(v: Vec3<T>) -> Self {
+        v.to_array()
     }
 }
 

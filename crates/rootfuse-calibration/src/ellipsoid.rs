@@ -80,7 +80,30 @@ pub struct EllipsoidFit {
     pub quality: FitQuality,
     /// Rows skipped because a component was NaN or infinite (they are not used).
     pub skipped_non_finite: usize,
+    /// Rows (indices into the input) left out as outliers: readings far from every other
+    /// (a glitch, a bit flip, a spike), or whose norm residual after a first fit is beyond
+    /// [`RESIDUAL_OUTLIER_SIGMAS`] robust standard deviations. At most
+    /// [`MAX_OUTLIER_FRACTION`] of the rows; more than that is disturbed data, not glitches,
+    /// and is left for the residual check to refuse.
+    pub outliers: Vec<usize>,
 }
+
+/// Readings farther from the coordinate-wise median than this many times the median
+/// distance are gross outliers, left out before the fit: no ellipsoid a sensor draws has
+/// axes this unequal, and a glitch of 1e6 or 1e200 would otherwise decide the fit.
+pub const GROSS_OUTLIER_FACTOR: f64 = 4.0;
+
+/// After a first fit, readings whose relative norm residual is this many robust standard
+/// deviations (1.4826 × the median absolute deviation) from the median residual, and at
+/// least [`MIN_OUTLIER_RESIDUAL`], are left out and the fit is repeated once.
+pub const RESIDUAL_OUTLIER_SIGMAS: f64 = 6.0;
+
+/// A relative norm residual below this (1 % of the norm) is never an outlier: a clean fit's
+/// noise is not trimmed.
+pub const MIN_OUTLIER_RESIDUAL: f64 = 0.01;
+
+/// The largest fraction of the rows left out as outliers.
+pub const MAX_OUTLIER_FRACTION: f64 = 0.05;
 
 /// The three-dimensional models, richest first, as the observability ladder tries them
 /// (the in-plane offset is the last resort).
@@ -141,7 +164,9 @@ impl FittedModel {
 /// magnetometer turned through many orientations, or an accelerometer's rest readings).
 ///
 /// Rows with a non-finite component are skipped and counted
-/// ([`EllipsoidFit::skipped_non_finite`]). Refused, with a [`CalibrationError`]: fewer than 12
+/// ([`EllipsoidFit::skipped_non_finite`]); outliers are left out and listed
+/// ([`EllipsoidFit::outliers`]). Refused, with a [`CalibrationError`]: a `norm` option that is
+/// not a positive finite number, fewer than 12
 /// finite rows, a constant reading (spread below [`MIN_RELATIVE_SPREAD`] of the mean), a saturated axis, motion that determines nothing, a
 /// quadric that is no ellipsoid, a residual above [`FitOptions::max_residual_relative`].
 pub fn fit_ellipsoid(
@@ -149,19 +174,115 @@ pub fn fit_ellipsoid(
     options: &FitOptions,
 ) -> Result<EllipsoidFit, CalibrationError> {
     const MIN_SAMPLES: usize = 12;
-    let data: Vec<[f64; 3]> = samples
+    if let Some(norm) = options.norm
+        && !(norm.is_finite() && norm > 0.0)
+    {
+        return Err(CalibrationError::InvalidNorm { norm });
+    }
+    // (row, reading) of the finite rows.
+    let finite: Vec<(usize, [f64; 3])> = samples
         .iter()
         .map(|v| v.to_array())
-        .filter(|v| v.iter().all(|c| c.is_finite()))
+        .enumerate()
+        .filter(|(_, v)| v.iter().all(|c| c.is_finite()))
         .collect();
-    let skipped = samples.len() - data.len();
-    if data.len() < MIN_SAMPLES {
+    let skipped = samples.len() - finite.len();
+    if finite.len() < MIN_SAMPLES {
         return Err(CalibrationError::TooFewSamples {
-            usable: data.len(),
+            usable: finite.len(),
             skipped_non_finite: skipped,
             needed: MIN_SAMPLES,
         });
     }
+    let max_outliers = (MAX_OUTLIER_FRACTION * finite.len() as f64) as usize;
+    let mut out = gross_outliers(&finite);
+    if out.len() > max_outliers {
+        out.clear();
+    }
+    let kept = |out: &[bool]| -> Vec<[f64; 3]> {
+        finite
+            .iter()
+            .zip(out)
+            .filter(|(_, o)| !**o)
+            .map(|(r, _)| r.1)
+            .collect()
+    };
+    // The first fit finds the readings off the ellipsoid; only the fit without them must
+    // meet the residual limit (a 1 % burst at twice the field alone gives 10 % RMS).
+    let loose = FitOptions {
+        max_residual_relative: f64::INFINITY,
+        ..*options
+    };
+    let first = fit_finite(&kept(&out), skipped, &loose)?;
+    let more = residual_outliers(&first.calibration, &finite, &out);
+    if out.iter().filter(|o| **o).count() + more.len() <= max_outliers {
+        for i in more {
+            out[i] = true;
+        }
+    }
+    fit_finite(&kept(&out), skipped, options).map(|mut fit| {
+        fit.outliers = finite
+            .iter()
+            .zip(&out)
+            .filter(|(_, o)| **o)
+            .map(|(r, _)| r.0)
+            .collect();
+        fit
+    })
+}
+
+/// Per finite row: true for a reading farther than [`GROSS_OUTLIER_FACTOR`] median distances
+/// from the coordinate-wise median.
+fn gross_outliers(finite: &[(usize, [f64; 3])]) -> Vec<bool> {
+    let centre: [f64; 3] = core::array::from_fn(|k| {
+        let mut c: Vec<f64> = finite.iter().map(|r| r.1[k]).collect();
+        median(&mut c)
+    });
+    let dist: Vec<f64> = finite.iter().map(|r| dist2(r.1, centre).sqrt()).collect();
+    let typical = median(&mut dist.clone());
+    dist.iter().map(|&d| d > GROSS_OUTLIER_FACTOR * typical).collect()
+}
+
+/// Positions in `finite` (not yet `out`) whose relative norm residual under `cal` is an
+/// outlier ([`RESIDUAL_OUTLIER_SIGMAS`], [`MIN_OUTLIER_RESIDUAL`]).
+fn residual_outliers(
+    cal: &SensorCalibration<f64>,
+    finite: &[(usize, [f64; 3])],
+    out: &[bool],
+) -> Vec<usize> {
+    let residual = |y: [f64; 3]| (cal.apply(Vec3::from_array(y)).norm() - cal.norm) / cal.norm;
+    let r: Vec<(usize, f64)> = finite
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !out[*i])
+        .map(|(i, row)| (i, residual(row.1)))
+        .collect();
+    let mut values: Vec<f64> = r.iter().map(|x| x.1).collect();
+    let centre = median(&mut values);
+    let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
+    let sigma = 1.4826 * median(&mut deviations);
+    let limit = (RESIDUAL_OUTLIER_SIGMAS * sigma).max(MIN_OUTLIER_RESIDUAL);
+    r.iter()
+        .filter(|(_, v)| v.is_nan() || (v - centre).abs() > limit)
+        .map(|(i, _)| *i)
+        .collect()
+}
+
+/// The median of finite values (reorders them); 0 for none.
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// [`fit_ellipsoid`] on finite readings.
+fn fit_finite(
+    data: &[[f64; 3]],
+    skipped: usize,
+    options: &FitOptions,
+) -> Result<EllipsoidFit, CalibrationError> {
     let n = data.len() as f64;
     let mean = core::array::from_fn::<f64, 3, _>(|k| data.iter().map(|v| v[k]).sum::<f64>() / n);
     let spread = (data.iter().map(|v| dist2(*v, mean)).sum::<f64>() / n).sqrt();
@@ -171,7 +292,7 @@ pub fn fit_ellipsoid(
     if spread.is_nan() || spread <= MIN_RELATIVE_SPREAD * magnitude || spread == 0.0 {
         return Err(CalibrationError::ConstantField { spread, magnitude });
     }
-    check_saturation(&data, options)?;
+    check_saturation(data, options)?;
     let normalised: Vec<[f64; 3]> = data
         .iter()
         .map(|v| core::array::from_fn(|k| (v[k] - mean[k]) / spread))
@@ -198,7 +319,7 @@ pub fn fit_ellipsoid(
             calibration,
             model,
             refused,
-            &data,
+            data,
             condition,
             iterations,
             skipped,
@@ -217,12 +338,12 @@ pub fn fit_ellipsoid(
     }
     // a(u² + v²) + 2b₁u + 2b₂v = 1: centre (−b₁/a, −b₂/a).
     let centre = [-coeffs[1] / coeffs[0], -coeffs[2] / coeffs[0]];
-    let calibration = in_plane_calibration(centre, plane, mean, spread, &data);
+    let calibration = in_plane_calibration(centre, plane, mean, spread, data);
     finish(
         calibration,
         model,
         refused,
-        &data,
+        data,
         condition,
         0,
         skipped,
@@ -259,6 +380,7 @@ fn finish(
         refused,
         quality,
         skipped_non_finite: skipped,
+        outliers: Vec::new(),
     })
 }
 

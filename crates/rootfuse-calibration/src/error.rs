@@ -74,6 +74,14 @@ pub enum CalibrationError {
         /// The minimum.
         needed: usize,
     },
+    /// The `norm` option is not a positive finite number.
+    #[error(
+        "norm {norm} is not a positive finite number: give the field strength in the recording's units, or leave it out"
+    )]
+    InvalidNorm {
+        /// The value given.
+        norm: f64,
+    },
     /// The numerical solver failed (reported with its reason).
     #[error("least-squares solver: {0}")]
     Solver(String),

@@ -12,8 +12,12 @@ use crate::{CalibrationError, EllipsoidFit, FitOptions, fit_ellipsoid};
 use rootfuse_attitude::{Mat, SensorCalibration, Vec3};
 
 /// How rest is detected: blocks of `block_s` seconds whose per-axis standard deviations stay
-/// below the limits are still; runs of still blocks with the same gravity direction (within
-/// `max_turn_rad`) lasting at least `min_duration_s` are rest phases.
+/// below the limits, and whose mean angular rate is no more than a gyroscope bias can be
+/// (`max_gyro_bias`), are still; runs of still blocks with the same gravity direction (within
+/// `max_turn_rad` of the previous block) and, when a magnetometer is given, the same field
+/// direction (within `max_field_turn_rad` of the phase's first block) lasting at least
+/// `min_duration_s` are rest phases. A steady turn (a turntable) has a steady gyroscope and
+/// accelerometer: its rate, and the turning field, tell it from rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RestOptions {
     /// Block length, s.
@@ -27,10 +31,20 @@ pub struct RestOptions {
     pub max_turn_rad: f64,
     /// Shortest rest phase, s.
     pub min_duration_s: f64,
+    /// Largest mean angular-rate magnitude of a still block, rad/s: above any plausible
+    /// gyroscope bias, so a steady turn is not taken for rest.
+    pub max_gyro_bias: f64,
+    /// Largest angle between a still block's mean field direction and the phase's first
+    /// block's, rad (magnetometer given): a turn slower than a bias can be still turns the
+    /// field.
+    pub max_field_turn_rad: f64,
 }
 
 impl Default for RestOptions {
-    /// Blocks of 0.25 s; 0.02 rad/s and 0.1 m/s²; 2°; phases of at least 1 s.
+    /// Blocks of 0.25 s; 0.02 rad/s and 0.1 m/s²; 2°; phases of at least 1 s; a mean rate of
+    /// at most 0.1 rad/s (5.7 °/s, several times a consumer MEMS gyroscope's bias); the field
+    /// within 0.5° (block means of a 0.3 µT-noise magnetometer in a 50 µT field scatter by
+    /// about 0.05°).
     fn default() -> Self {
         Self {
             block_s: 0.25,
@@ -38,6 +52,8 @@ impl Default for RestOptions {
             acc_std_max: 0.1,
             max_turn_rad: 2f64.to_radians(),
             min_duration_s: 1.0,
+            max_gyro_bias: 0.1,
+            max_field_turn_rad: 0.5f64.to_radians(),
         }
     }
 }
@@ -55,12 +71,15 @@ pub struct RestPhase {
     pub mean_acc: Vec3<f64>,
 }
 
-/// Finds the rest phases of a recording (`t` in s, gyroscope rad/s, accelerometer m/s²; equal
-/// lengths). Blocks holding a non-finite value are not still.
+/// Finds the rest phases of a recording (`t` in s, gyroscope rad/s, accelerometer m/s², the
+/// magnetometer in any unit when there is one; equal lengths). Blocks holding a non-finite
+/// gyroscope or accelerometer value are not still; a block without a finite field reading
+/// is judged without the magnetometer.
 pub fn rest_phases(
     t: &[f64],
     gyr: &[Vec3<f64>],
     acc: &[Vec3<f64>],
+    mag: Option<&[Vec3<f64>]>,
     options: &RestOptions,
 ) -> Vec<RestPhase> {
     let n = t.len().min(gyr.len()).min(acc.len());
@@ -75,9 +94,11 @@ pub fn rest_phases(
     };
     let block = ((options.block_s * rate).round() as usize).max(2);
     let mut phases: Vec<RestPhase> = Vec::new();
-    let mut open: Option<(usize, usize, Vec3<f64>)> = None;
-    let close = |phases: &mut Vec<RestPhase>, run: Option<(usize, usize, Vec3<f64>)>| {
-        if let Some((start, end, _)) = run
+    // The open run: start, end, the last block's gravity direction, the first block's field.
+    type Run = (usize, usize, Vec3<f64>, Option<Vec3<f64>>);
+    let mut open: Option<Run> = None;
+    let close = |phases: &mut Vec<RestPhase>, run: Option<Run>| {
+        if let Some((start, end, _, _)) = run
             && t[end - 1] - t[start] >= options.min_duration_s
         {
             phases.push(RestPhase {
@@ -92,19 +113,30 @@ pub fn rest_phases(
         let e = (b + block).min(n);
         let still = e - b >= 2
             && std_max(&gyr[b..e]) <= options.gyro_std_max
-            && std_max(&acc[b..e]) <= options.acc_std_max;
+            && std_max(&acc[b..e]) <= options.acc_std_max
+            && mean(&gyr[b..e]).norm() <= options.max_gyro_bias;
         if !still {
             close(&mut phases, open.take());
             continue;
         }
         let dir = mean(&acc[b..e]);
+        let field = mag
+            .and_then(|m| m.get(b..e))
+            .map(mean)
+            .filter(|f| f.is_finite());
         open = match open {
-            Some((start, _, prev)) if angle(prev, dir) <= options.max_turn_rad => {
-                Some((start, e, dir))
+            Some((start, _, prev, first_field))
+                if angle(prev, dir) <= options.max_turn_rad
+                    && match (first_field, field) {
+                        (Some(a), Some(b)) => angle(a, b) <= options.max_field_turn_rad,
+                        _ => true,
+                    } =>
+            {
+                Some((start, e, dir, first_field.or(field)))
             }
             run => {
                 close(&mut phases, run);
-                Some((b, e, dir))
+                Some((b, e, dir, field))
             }
         };
     }

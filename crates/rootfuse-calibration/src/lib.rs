@@ -42,7 +42,8 @@ mod inertial;
 mod quality;
 
 pub use ellipsoid::{
-    EllipsoidFit, FitOptions, MIN_RELATIVE_SPREAD, SATURATION_MIN_COUNT, fit_ellipsoid,
+    EllipsoidFit, FitOptions, GROSS_OUTLIER_FACTOR, MAX_OUTLIER_FRACTION, MIN_OUTLIER_RESIDUAL,
+    MIN_RELATIVE_SPREAD, RESIDUAL_OUTLIER_SIGMAS, SATURATION_MIN_COUNT, fit_ellipsoid,
 };
 pub use error::CalibrationError;
 pub use inertial::{

@@ -81,6 +81,7 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
             };
             let fit = fit_ellipsoid(&mag, &options).map_err(|e| format!("mag: {e}"))?;
             print_fit("magnetometer", &fit);
+            print_outliers(&fit.outliers, &recs, &args.files);
             fit_json(&fit)
         }
         Sensor::Acc | Sensor::Gyro => {
@@ -88,7 +89,13 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
             for rec in &recs {
                 let offset = acc.len();
                 phases.extend(
-                    rest_phases(&rec.t, &rec.gyr, &rec.acc, &RestOptions::default())
+                    rest_phases(
+                        &rec.t,
+                        &rec.gyr,
+                        &rec.acc,
+                        rec.mag.as_deref(),
+                        &RestOptions::default(),
+                    )
                         .into_iter()
                         .map(|p| RestPhase {
                             start: p.start + offset,
@@ -191,6 +198,39 @@ fn print_fit(what: &str, fit: &EllipsoidFit) {
     );
 }
 
+/// Names the rows the fit left out as outliers: file and 0-based data row (the first few).
+fn print_outliers(rows: &[usize], recs: &[Recording], files: &[PathBuf]) {
+    if rows.is_empty() {
+        return;
+    }
+    let named: Vec<String> = rows
+        .iter()
+        .take(5)
+        .map(|&row| {
+            // `row` indexes the files' readings laid end to end.
+            let mut rest = row;
+            for (rec, file) in recs.iter().zip(files) {
+                if rest < rec.len() {
+                    return format!("{} row {rest}", file.display());
+                }
+                rest -= rec.len();
+            }
+            format!("row {row}")
+        })
+        .collect();
+    let more = rows.len().saturating_sub(named.len());
+    eprintln!(
+        "note: {} outlier reading(s) left out of the fit (far from every other, or off the fitted ellipsoid): {}{}",
+        rows.len(),
+        named.join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        }
+    );
+}
+
 fn calibration_json(c: &SensorCalibration<f64>) -> Value {
     json!({
         "matrix": c.matrix.m,
@@ -218,6 +258,7 @@ fn fit_json(fit: &EllipsoidFit) -> Value {
         "condition": q.condition,
         "samples": q.samples,
         "skipped_non_finite": fit.skipped_non_finite,
+        "outliers": fit.outliers.len(),
     });
     v
 }

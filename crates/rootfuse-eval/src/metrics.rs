@@ -97,6 +97,38 @@ pub enum MetricsError {
     /// No sample has `use = 1` and finite truth.
     #[error("no sample counts for evaluation (use = 1 with finite truth)")]
     NoUsableSamples,
+    /// An estimate that counts is no orientation: its norm is off 1 by more than
+    /// [`UNIT_NORM_TOLERANCE`] (an all-zero row would score as perfect, `2·q` would be
+    /// normalised silently), or a component is NaN (unknown) where the truth counts.
+    #[error(
+        "estimate row {row}: norm {norm} is not 1 (within {UNIT_NORM_TOLERANCE}): not an orientation; unknown rows must be left out with the use mask"
+    )]
+    NotAnOrientation {
+        /// 0-based row.
+        row: usize,
+        /// Its norm (NaN for an unknown row).
+        norm: f64,
+    },
+}
+
+/// How far from 1 the norm of an estimate that counts may be: a quaternion written with
+/// three decimals is within 2·10⁻³ of unit norm; a zero or unnormalised one is far outside.
+pub const UNIT_NORM_TOLERANCE: f64 = 0.01;
+
+/// The first counted row whose estimate is no orientation.
+fn check_orientations(
+    est: &[Quat<f64>],
+    truth: &[Quat<f64>],
+    mask: Option<&[bool]>,
+) -> Result<(), MetricsError> {
+    for (row, q) in est.iter().enumerate() {
+        let norm = q.norm();
+        let off = (norm - 1.0).abs();
+        if counted(truth, mask, row) && (off.is_nan() || off > UNIT_NORM_TOLERANCE) {
+            return Err(MetricsError::NotAnOrientation { row, norm });
+        }
+    }
+    Ok(())
 }
 
 /// The error quaternion `e = q_est ⊗ conj(q_ref)` (earth frame).
@@ -229,13 +261,16 @@ pub fn error_series(
 }
 
 /// The BROAD RMSE (degrees) of estimates against truth over the samples with `use = 1`
-/// (all when `use_mask` is `None`) and finite truth.
+/// (all when `use_mask` is `None`) and finite truth. Refused: an estimate that counts and is
+/// no unit quaternion ([`MetricsError::NotAnOrientation`]).
 pub fn rmse(
     est: &[Quat<f64>],
     truth: &[Quat<f64>],
     use_mask: Option<&[bool]>,
     mode: Alignment,
 ) -> Result<Rmse, MetricsError> {
+    check(est, truth, use_mask)?;
+    check_orientations(est, truth, use_mask)?;
     let series = error_series(est, truth, use_mask, mode)?;
     let (mut st, mut sh, mut si, mut n) = (0.0, 0.0, 0.0, 0usize);
     for i in 0..est.len() {

@@ -18,7 +18,7 @@ use rootfuse_calibration::{FitOptions, fit_ellipsoid};
 /// (`"full"`, `"diagonal-scale"`, `"offset-only"` or `"in-plane-offset"`: what the data
 /// determined), `refused` (list of `(model, condition number)` the data could not determine),
 /// `residual_rms_relative`, `residual_max_relative`, `coverage` (share of direction cells with
-/// data), `direction_spread`, `condition`, `samples`, `skipped_non_finite`. ValueError for
+/// data), `direction_spread`, `condition`, `samples`, `skipped_non_finite`, `outliers` (the input rows left out as outliers). ValueError for
 /// too few samples, a constant reading, a saturated axis, a quadric that is no ellipsoid or a
 /// residual above 5 % — a refusal, never a wrong calibration.
 #[pyfunction]
@@ -70,5 +70,6 @@ pub fn fit_ellipsoid_calibration<'py>(
     d.set_item("condition", q.condition)?;
     d.set_item("samples", q.samples)?;
     d.set_item("skipped_non_finite", fit.skipped_non_finite)?;
+    d.set_item("outliers", fit.outliers.clone())?;
     Ok(d)
 }

@@ -36,13 +36,29 @@ fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<boo
 /// Estimates, truth (both `(N, 4)`, same N) and the optional use mask.
 type Compared = (Vec<Quat<f64>>, Vec<Quat<f64>>, Option<Vec<bool>>);
 
+/// `truth` is an `(N, 4)` array, or a recording dict (`read_csv`, `simulate`) whose `truth`
+/// and `use` are taken, as `rootfuse eval` takes them (an explicit `use` wins).
 fn compared(
     est: &Bound<'_, PyAny>,
     truth: &Bound<'_, PyAny>,
     r#use: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Compared> {
     let e = quats(est, "est")?;
-    let t = quats(truth, "truth")?;
+    let (truth, recording_use) = match truth.cast::<PyDict>() {
+        Ok(rec) => {
+            let t = rec.get_item("truth")?.filter(|t| !t.is_none()).ok_or_else(|| {
+                PyValueError::new_err("truth: the recording has no ground truth (`truth` is None)")
+            })?;
+            (t, rec.get_item("use")?)
+        }
+        Err(_) => (truth.clone(), None),
+    };
+    let r#use = match r#use {
+        Some(u) if !u.is_none() => Some(u.clone()),
+        _ => recording_use,
+    };
+    let r#use = r#use.as_ref();
+    let t = quats(&truth, "truth")?;
     if t.len() != e.len() {
         return Err(PyValueError::new_err(format!(
             "truth: has {} samples but est has {}",
@@ -70,7 +86,10 @@ fn metric_err(e: metrics::MetricsError) -> PyErr {
 
 /// The BROAD RMSE, degrees, of estimates `est` `(N, 4)` against `truth` `(N, 4)` (both
 /// `[w, x, y, z]`, sensor to earth) over the samples with `use` (bool `(N,)`, all when None)
-/// and finite truth. `dof=6` first removes the constant heading offset (circular mean), as
+/// and finite truth. `truth` may be a recording dict: its `truth` and `use` are taken, which
+/// is what `rootfuse eval` scores (BROAD's `use` marks the samples to count). ValueError for
+/// an estimate that counts and is no unit quaternion (norm off 1 by more than 0.01, or NaN),
+/// naming the row, as `eval` refuses it. `dof=6` first removes the constant heading offset (circular mean), as
 /// BROAD does for 6D estimates. Returns `{"total", "heading", "inclination", "n_used",
 /// "heading_offset"}` (degrees; the offset removed, 0 for 9D).
 #[pyfunction]

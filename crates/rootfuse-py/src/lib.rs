@@ -92,6 +92,8 @@ fn _rootfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
             missing.join(", ")
         )));
     }
+    // The crate's version is the package's (maturin takes it from Cargo.toml).
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<filter::Filter>()?;
     m.add_function(wrap_pyfunction!(filter::filters, m)?)?;
     m.add_function(wrap_pyfunction!(filter::smooth, m)?)?;

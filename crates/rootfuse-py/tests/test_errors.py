@@ -175,3 +175,9 @@ def test_eval_errors(tmp_path):
     bad.write_text("t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9.8\n0.01,0,x,0,0,0,9.8\n")
     with pytest.raises(ValueError, match="bad.csv: line 3"):
         rf.read_csv(bad)
+
+
+def test_version():
+    import importlib.metadata
+
+    assert rf.__version__ == importlib.metadata.version("rootfuse")

@@ -267,3 +267,22 @@ def test_simulator_and_recordings_roundtrip(tmp_path):
     np.testing.assert_array_equal(again["quat"], est["quat"])
     np.testing.assert_array_equal(again["t"], back["t"])
     assert rf.rmse(est["quat"], back["truth"], use=back["use"])["total"] < 10.0
+    # A recording in place of the truth scores what `rootfuse eval` scores: its truth and use.
+    assert rf.rmse(est["quat"], back) == rf.rmse(est["quat"], back["truth"], use=back["use"])
+
+
+def test_rmse_refuses_what_eval_refuses():
+    """An estimate that counts must be a unit quaternion: an all-zero row would score as
+    perfect, 2q would be normalised silently, a NaN row gives a NaN RMSE. Rows the use mask
+    leaves out are not checked."""
+    n = 20
+    truth = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    for bad, norm in ((np.zeros(4), "0"), (2 * truth[0], "2"), (np.full(4, np.nan), "NaN")):
+        est = truth.copy()
+        est[7] = bad
+        with pytest.raises(ValueError, match=f"estimate row 7: norm {norm} is not 1"):
+            rf.rmse(est, truth)
+        use = np.ones(n, dtype=bool); use[7] = False
+        assert rf.rmse(est, truth, use=use)["n_used"] == n - 1
+    with pytest.raises(ValueError, match="no ground truth"):
+        rf.rmse(truth, {"truth": None, "use": None})

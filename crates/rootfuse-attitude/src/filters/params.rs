@@ -645,9 +645,9 @@ mod tests {
         // Structural ones do not: dof, switches, screening limits.
         for (change, name) in [
             (&(|p: &mut SqrtEskfParams| p.dof = Dof::Six) as &dyn Fn(&mut SqrtEskfParams), "dof"),
-            (&|p| p.max_dt *= 2.0, "max_dt"),
-            (&|p| p.max_gyr *= 2.0, "max_gyr"),
-            (&|p| p.max_acc *= 2.0, "max_acc"),
+            (&|p: &mut SqrtEskfParams| p.max_dt *= 2.0, "max_dt"),
+            (&|p: &mut SqrtEskfParams| p.max_gyr *= 2.0, "max_gyr"),
+            (&|p: &mut SqrtEskfParams| p.max_acc *= 2.0, "max_acc"),
         ] {
             let refused = per_lane(&sets(change));
             assert_eq!(refused, Err(LaneParamsError::Structural { lane: 6, name }));

@@ -10,6 +10,7 @@ disturbance.
 """
 
 from ._rootfuse import (
+    __version__,
     Filter,
     Rls,
     build_info,
@@ -41,6 +42,7 @@ FLAG_REST = 32
 FLAG_MAG_DISTURBED = 64
 
 __all__ = [
+    "__version__",
     "Filter",
     "Rls",
     "build_info",

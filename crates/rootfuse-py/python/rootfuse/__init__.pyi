@@ -10,6 +10,9 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, TypedDict, Union
 import numpy as np
 import numpy.typing as npt
 
+# The package version (the crate's, from Cargo.toml).
+__version__: str
+
 FloatArray = npt.NDArray[np.floating[Any]]
 F64 = npt.NDArray[np.float64]
 U8 = npt.NDArray[np.uint8]
@@ -196,14 +199,14 @@ def stress(scenario: Optional[str] = None, *, scale: float = 1.0, long: bool = F
 
 def stress_scenarios() -> List[str]: ...
 
-def rmse(est: FloatArray, truth: FloatArray, *, use: Optional[npt.ArrayLike] = None, dof: int = 9) -> Dict[str, float]:
+def rmse(est: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, use: Optional[npt.ArrayLike] = None, dof: int = 9) -> Dict[str, float]:
     """BROAD RMSE in degrees (total, heading, inclination), 6D heading offset removed for
     dof=6."""
 
-def error_series(est: FloatArray, truth: FloatArray, *, use: Optional[npt.ArrayLike] = None, dof: int = 9) -> Dict[str, Any]:
+def error_series(est: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, use: Optional[npt.ArrayLike] = None, dof: int = 9) -> Dict[str, Any]:
     """Per-sample BROAD errors, degrees."""
 
-def heading_offset(est: FloatArray, truth: FloatArray, *, use: Optional[npt.ArrayLike] = None) -> Optional[float]:
+def heading_offset(est: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, use: Optional[npt.ArrayLike] = None) -> Optional[float]:
     """The 6D heading offset, degrees."""
 
 def simulate(scenario: str, *, seed: int = 0, duration_s: float = 10.0, rate_hz: float = 100.0) -> Dict[str, Any]:
