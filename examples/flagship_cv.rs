@@ -94,7 +94,8 @@ fn design(
 
 /// Runs four candidate sets in the four lanes of an `f64x4` filter over one recording.
 fn score4(sets: &[SqrtEskfParams; 4], rec: &Recording) -> [Score; 4] {
-    let lanes = LaneParams::per_lane(sets).expect("four valid sets that differ only in real parameters");
+    let lanes =
+        LaneParams::per_lane(sets).expect("four valid sets that differ only in real parameters");
     let mut f = SqrtEskf::<f64x4>::with_lane_params(&lanes);
     let v = |x: Vec3<f64>| Vec3::<f64x4>::from_f64([x.x, x.y, x.z]);
     let mut q9: [Vec<Quat<f64>>; 4] = std::array::from_fn(|_| Vec::with_capacity(rec.len()));

@@ -275,6 +275,9 @@ fn glitches_and_outlier_bursts_are_left_out_and_named() {
             ..FitOptions::default()
         };
         let err = fit_ellipsoid(&clean, &options).unwrap_err();
-        assert!(matches!(err, CalibrationError::InvalidNorm { .. }), "{norm}: {err}");
+        assert!(
+            matches!(err, CalibrationError::InvalidNorm { .. }),
+            "{norm}: {err}"
+        );
     }
 }

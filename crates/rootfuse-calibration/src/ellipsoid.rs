@@ -196,8 +196,8 @@ pub fn fit_ellipsoid(
     }
     let max_outliers = (MAX_OUTLIER_FRACTION * finite.len() as f64) as usize;
     let mut out = gross_outliers(&finite);
-    if out.len() > max_outliers {
-        out.clear();
+    if out.iter().filter(|o| **o).count() > max_outliers {
+        out.fill(false);
     }
     let kept = |out: &[bool]| -> Vec<[f64; 3]> {
         finite
@@ -240,7 +240,9 @@ fn gross_outliers(finite: &[(usize, [f64; 3])]) -> Vec<bool> {
     });
     let dist: Vec<f64> = finite.iter().map(|r| dist2(r.1, centre).sqrt()).collect();
     let typical = median(&mut dist.clone());
-    dist.iter().map(|&d| d > GROSS_OUTLIER_FACTOR * typical).collect()
+    dist.iter()
+        .map(|&d| d > GROSS_OUTLIER_FACTOR * typical)
+        .collect()
 }
 
 /// Positions in `finite` (not yet `out`) whose relative norm residual under `cal` is an

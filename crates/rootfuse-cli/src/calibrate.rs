@@ -96,12 +96,12 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
                         rec.mag.as_deref(),
                         &RestOptions::default(),
                     )
-                        .into_iter()
-                        .map(|p| RestPhase {
-                            start: p.start + offset,
-                            end: p.end + offset,
-                            ..p
-                        }),
+                    .into_iter()
+                    .map(|p| RestPhase {
+                        start: p.start + offset,
+                        end: p.end + offset,
+                        ..p
+                    }),
                 );
                 gyr.extend_from_slice(&rec.gyr);
                 acc.extend_from_slice(&rec.acc);

@@ -79,7 +79,7 @@ pub struct ErrorSeries {
 }
 
 /// Why errors could not be computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum MetricsError {
     /// Estimate, truth and use mask differ in length.
     #[error("length mismatch: {estimates} estimates, {truth} truth samples, {mask} use flags")]

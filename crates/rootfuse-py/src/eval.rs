@@ -46,9 +46,14 @@ fn compared(
     let e = quats(est, "est")?;
     let (truth, recording_use) = match truth.cast::<PyDict>() {
         Ok(rec) => {
-            let t = rec.get_item("truth")?.filter(|t| !t.is_none()).ok_or_else(|| {
-                PyValueError::new_err("truth: the recording has no ground truth (`truth` is None)")
-            })?;
+            let t = rec
+                .get_item("truth")?
+                .filter(|t| !t.is_none())
+                .ok_or_else(|| {
+                    PyValueError::new_err(
+                        "truth: the recording has no ground truth (`truth` is None)",
+                    )
+                })?;
             (t, rec.get_item("use")?)
         }
         Err(_) => (truth.clone(), None),

@@ -644,7 +644,10 @@ mod tests {
         assert_eq!(per_lane(core::slice::from_ref(&base)), Ok(()));
         // Structural ones do not: dof, switches, screening limits.
         for (change, name) in [
-            (&(|p: &mut SqrtEskfParams| p.dof = Dof::Six) as &dyn Fn(&mut SqrtEskfParams), "dof"),
+            (
+                &(|p: &mut SqrtEskfParams| p.dof = Dof::Six) as &dyn Fn(&mut SqrtEskfParams),
+                "dof",
+            ),
             (&|p: &mut SqrtEskfParams| p.max_dt *= 2.0, "max_dt"),
             (&|p: &mut SqrtEskfParams| p.max_gyr *= 2.0, "max_gyr"),
             (&|p: &mut SqrtEskfParams| p.max_acc *= 2.0, "max_acc"),
@@ -653,7 +656,9 @@ mod tests {
             assert_eq!(refused, Err(LaneParamsError::Structural { lane: 6, name }));
         }
         let invalid = per_lane(&sets(&|p| p.gyr_noise = -1.0));
-        assert!(matches!(invalid, Err(LaneParamsError::Invalid { lane: 6, error }) if error.name == "gyr_noise"));
+        assert!(
+            matches!(invalid, Err(LaneParamsError::Invalid { lane: 6, error }) if error.name == "gyr_noise")
+        );
         // Neither one set nor one per lane: refused, never wrapped or cut.
         for n in [0, 2, 3, 7, 9, 16] {
             let many = [(); 16].map(|_| base.clone());
