@@ -1,8 +1,8 @@
 //! Gyroscope bias and the accelerometer's six-position calibration from rest phases.
 use core::f64::consts::{FRAC_PI_2, PI};
-use rootfuse_attitude::{Quat, Vec3};
+use rootfuse_attitude::{Quat, Recording, Vec3};
 use rootfuse_calibration::{
-    FitOptions, FittedModel, RestOptions, accelerometer, gyro_bias, rest_phases,
+    FitOptions, FittedModel, RestOptions, RestPhase, accelerometer, gyro_bias, rest_phases,
 };
 use rootfuse_eval::sim::{self, Segment, Simulation, Timing, Trajectory};
 
@@ -42,16 +42,21 @@ fn six_positions() -> Simulation {
     }
 }
 
-#[test]
-fn six_position_method_recovers_offset_and_scale() {
-    let rec = six_positions().run().unwrap().recording;
-    let phases = rest_phases(
+/// The rest phases of a recording with the default options, its magnetometer included.
+fn rests(rec: &Recording) -> Vec<RestPhase> {
+    rest_phases(
         &rec.t,
         &rec.gyr,
         &rec.acc,
         rec.mag.as_deref(),
         &RestOptions::default(),
-    );
+    )
+}
+
+#[test]
+fn six_position_method_recovers_offset_and_scale() {
+    let rec = six_positions().run().unwrap().recording;
+    let phases = rests(&rec);
     assert_eq!(phases.len(), 7, "{phases:?}");
     let acc = accelerometer(&rec.acc, &phases, sim::GRAVITY, &FitOptions::default()).unwrap();
     let fit = &acc.fit;
@@ -73,13 +78,7 @@ fn six_position_method_recovers_offset_and_scale() {
 #[test]
 fn gyro_bias_is_the_rest_mean() {
     let rec = six_positions().run().unwrap().recording;
-    let phases = rest_phases(
-        &rec.t,
-        &rec.gyr,
-        &rec.acc,
-        rec.mag.as_deref(),
-        &RestOptions::default(),
-    );
+    let phases = rests(&rec);
     let fit = gyro_bias(&rec.gyr, &phases).unwrap();
     let err = (fit.calibration.offset - Vec3::from_array(GYRO_BIAS)).norm();
     // Noise 1.2e-3 rad/s per sample over about 3000 samples: a few 1e-5.
@@ -105,13 +104,7 @@ fn a_steady_turn_is_not_rest() {
         )
         .unwrap();
         let rec = sim.run().unwrap().recording;
-        let phases = rest_phases(
-            &rec.t,
-            &rec.gyr,
-            &rec.acc,
-            rec.mag.as_deref(),
-            &RestOptions::default(),
-        );
+        let phases = rests(&rec);
         let rest_end = phases.iter().map(|p| rec.t[p.end - 1]).fold(0.0, f64::max);
         assert!(
             rest_end < 4.3,
