@@ -16,6 +16,7 @@ cd "$(dirname "$0")/.."
 python=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$python" -m venv .venv
 .venv/bin/python -m pip install --quiet "maturin>=1.5,<2" ziglang
-RUSTFLAGS="-C target-cpu=x86-64" CARGO_TARGET_DIR=target/portable \
+# maturin finds zig through `python3 -m ziglang`, so the venv's python must come first.
+PATH="$(pwd)/.venv/bin:$PATH" RUSTFLAGS="-C target-cpu=x86-64" CARGO_TARGET_DIR=target/portable \
     .venv/bin/maturin build --release --zig --compatibility manylinux2014 \
     --manifest-path crates/rootfuse-py/Cargo.toml --out target/wheels "$@"
