@@ -251,6 +251,46 @@ pub fn square(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>
 }
 
 /// Checks that `got` samples of argument `name` agree with the `n` of `gyr`.
+/// The text of `obj` for a message (its `repr`).
+fn shown(obj: &Bound<'_, PyAny>) -> String {
+    obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
+}
+
+/// The `dof` argument: 6 or 9. Anything else (another integer, a negative or huge one, a
+/// float) is a ValueError naming `dof`: pyo3's own conversion to `u8` raised a bare
+/// OverflowError that named nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DofArg(pub u8);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for DofArg {
+    type Error = PyErr;
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        match obj.extract::<i64>() {
+            Ok(d @ (6 | 9)) => Ok(Self(d as u8)),
+            _ => Err(PyValueError::new_err(format!(
+                "dof: expected 6 or 9, got {}",
+                shown(&obj)
+            ))),
+        }
+    }
+}
+
+/// A seed: a whole number in `[0, 2**64)`; anything else is a ValueError naming `seed`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SeedArg(pub u64);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for SeedArg {
+    type Error = PyErr;
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        obj.extract::<u64>().map(Self).map_err(|_| {
+            PyValueError::new_err(format!(
+                "seed: expected a whole number in [0, 2**64), got {}",
+                shown(&obj)
+            ))
+        })
+    }
+}
+
 pub fn same_length(name: &str, got: usize, n: usize) -> PyResult<()> {
     if got == n {
         Ok(())

@@ -1,7 +1,7 @@
 //! Metrics (`rootfuse_eval::metrics`), the simulator (`rootfuse_eval::sim`) and recordings on
 //! disk (`rootfuse_io`).
 
-use crate::arrays::{Steps, matrix, same_length, vector};
+use crate::arrays::{DofArg, SeedArg, Steps, matrix, same_length, vector};
 use crate::filter::{Inputs, imu_arrays, recording};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyIOError, PyValueError};
@@ -98,16 +98,16 @@ fn metric_err(e: metrics::MetricsError) -> PyErr {
 /// BROAD does for 6D estimates. Returns `{"total", "heading", "inclination", "n_used",
 /// "heading_offset"}` (degrees; the offset removed, 0 for 9D).
 #[pyfunction]
-#[pyo3(signature = (est, truth, *, r#use=None, dof=9))]
+#[pyo3(signature = (est, truth, *, r#use=None, dof=DofArg(9)))]
 pub fn rmse<'py>(
     py: Python<'py>,
     est: &Bound<'py, PyAny>,
     truth: &Bound<'py, PyAny>,
     r#use: Option<&Bound<'py, PyAny>>,
-    dof: u8,
+    dof: DofArg,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (e, t, mask) = compared(est, truth, r#use)?;
-    let r = metrics::rmse(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
+    let r = metrics::rmse(&e, &t, mask.as_deref(), alignment(dof.0)?).map_err(metric_err)?;
     let d = PyDict::new(py);
     d.set_item("total", r.total)?;
     d.set_item("heading", r.heading)?;
@@ -121,16 +121,17 @@ pub fn rmse<'py>(
 /// `dof` (see `rmse`). Returns `{"total", "heading", "inclination"}` float64 `(N,)`, `"used"`
 /// bool `(N,)` and `"heading_offset"` (degrees).
 #[pyfunction]
-#[pyo3(signature = (est, truth, *, r#use=None, dof=9))]
+#[pyo3(signature = (est, truth, *, r#use=None, dof=DofArg(9)))]
 pub fn error_series<'py>(
     py: Python<'py>,
     est: &Bound<'py, PyAny>,
     truth: &Bound<'py, PyAny>,
     r#use: Option<&Bound<'py, PyAny>>,
-    dof: u8,
+    dof: DofArg,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (e, t, mask) = compared(est, truth, r#use)?;
-    let s = metrics::error_series(&e, &t, mask.as_deref(), alignment(dof)?).map_err(metric_err)?;
+    let s =
+        metrics::error_series(&e, &t, mask.as_deref(), alignment(dof.0)?).map_err(metric_err)?;
     let d = PyDict::new(py);
     d.set_item("total", PyArray1::from_vec(py, s.total))?;
     d.set_item("heading", PyArray1::from_vec(py, s.heading))?;
@@ -189,16 +190,16 @@ fn recording_dict<'py>(py: Python<'py>, rec: Recording) -> PyResult<Bound<'py, P
 /// Simulates an IMU with the named preset (`scenario_names()`), seeded: returns a recording
 /// dict (see `read_csv`) with the true orientation in `truth`. `duration_s` s, `rate_hz` Hz.
 #[pyfunction]
-#[pyo3(signature = (scenario, *, seed=0, duration_s=10.0, rate_hz=100.0))]
+#[pyo3(signature = (scenario, *, seed=SeedArg(0), duration_s=10.0, rate_hz=100.0))]
 pub fn simulate<'py>(
     py: Python<'py>,
     scenario: &str,
-    seed: u64,
+    seed: SeedArg,
     duration_s: f64,
     rate_hz: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rec = py
-        .detach(|| rootfuse_eval::sim::scenario(scenario, seed, duration_s, rate_hz))
+        .detach(|| rootfuse_eval::sim::scenario(scenario, seed.0, duration_s, rate_hz))
         .map_err(|e| PyValueError::new_err(format!("scenario: {e}")))?;
     recording_dict(py, rec)
 }

@@ -1,7 +1,7 @@
 //! One filter, one channel: `Filter` (whole arrays with `update_batch`, or one sample at a
 //! time), the registry listing, and the offline smoother.
 
-use crate::arrays::{self, Steps, same_length, sensor_matrix};
+use crate::arrays::{self, DofArg, Steps, same_length, sensor_matrix};
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -25,7 +25,7 @@ pub fn precision(text: &str) -> PyResult<Precision> {
 /// Builds a validated spec from a name, `dof` and keyword parameters (registry checks).
 pub fn spec_from(
     name: &str,
-    dof: Option<u8>,
+    dof: Option<DofArg>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<FilterSpec> {
     let mut spec =
@@ -52,7 +52,7 @@ pub fn spec_from(
                 .map_err(|e| PyValueError::new_err(format!("{key}: {e}")))?;
         }
     }
-    if let Some(d) = dof {
+    if let Some(DofArg(d)) = dof {
         let d = Dof::from_count(d)
             .ok_or_else(|| PyValueError::new_err(format!("dof: expected 6 or 9, got {d}")))?;
         spec.set_dof(d)
@@ -383,7 +383,7 @@ impl Filter {
     #[pyo3(signature = (name, *, dof=None, precision="f64", **params))]
     fn new(
         name: &str,
-        dof: Option<u8>,
+        dof: Option<DofArg>,
         precision: &str,
         params: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
@@ -667,7 +667,7 @@ pub fn smooth<'py>(
     mag: Option<&Bound<'py, PyAny>>,
     t: Option<&Bound<'py, PyAny>>,
     dt: Option<&Bound<'py, PyAny>>,
-    dof: Option<u8>,
+    dof: Option<DofArg>,
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let spec = spec_from(name, dof, params)?;

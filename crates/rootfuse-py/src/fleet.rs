@@ -4,6 +4,7 @@
 //! `rootfuse run` on a Parquet or Arrow file (`rootfuse_columnar`), so each device's
 //! estimates equal the CLI's bit for bit.
 
+use crate::arrays::DofArg;
 use crate::filter::{precision, spec_from};
 use arrow::array::{RecordBatch, RecordBatchReader};
 use arrow::datatypes::SchemaRef;
@@ -241,7 +242,7 @@ pub fn estimate_arrow(
     source: &Bound<'_, PyAny>,
     filter: &str,
     precision: &str,
-    dof: Option<u8>,
+    dof: Option<DofArg>,
     bias: bool,
     covariance: bool,
     flags: bool,
@@ -281,7 +282,7 @@ pub fn estimate_arrow(
     )?;
     // As the CLI: 9D asked for explicitly needs a magnetometer; a filter that is 9D by
     // default runs without one, its magnetometer corrections skipped and counted.
-    if dof == Some(9) && !reader.has_mag() {
+    if dof == Some(DofArg(9)) && !reader.has_mag() {
         return Err(PyValueError::new_err(format!(
             "{SOURCE}: no magnetometer columns (mx, my, mz) for 9D operation: give dof=6"
         )));
@@ -322,7 +323,7 @@ fn per_device_specs(
     py: Python<'_>,
     table: &Bound<'_, PyDict>,
     filter: &str,
-    dof: Option<u8>,
+    dof: Option<DofArg>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(Vec<String>, Vec<rootfuse_attitude::registry::FilterSpec>)> {
     let mut labels = Vec::with_capacity(table.len());

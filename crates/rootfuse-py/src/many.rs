@@ -6,7 +6,9 @@
 //! written by the engine straight into NumPy arrays allocated once
 //! ([`EstimateSink`](rootfuse_batch::EstimateSink)).
 
-use crate::arrays::{Floats, SensorArray, Steps, float_array, positive, sensor_array, vector};
+use crate::arrays::{
+    DofArg, Floats, SensorArray, Steps, float_array, positive, sensor_array, vector,
+};
 use crate::filter::{Inputs, rejections_dict, spec_from};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -192,7 +194,7 @@ pub fn run_many<'py>(
     mag: Option<&Bound<'py, PyAny>>,
     dt: Option<&Bound<'py, PyAny>>,
     t: Option<&Bound<'py, PyAny>>,
-    dof: Option<u8>,
+    dof: Option<DofArg>,
     precision: &str,
     channel_params: Option<&Bound<'py, PyList>>,
     series: bool,

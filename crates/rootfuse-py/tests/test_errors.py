@@ -181,3 +181,17 @@ def test_version():
     import importlib.metadata
 
     assert rf.__version__ == importlib.metadata.version("rootfuse")
+
+
+def test_integer_arguments_are_named():
+    """A dof or seed out of range is a ValueError naming the argument, not a bare
+    OverflowError from the conversion."""
+    for bad in (300, -1, 7, 2**70):
+        with pytest.raises(ValueError, match=f"dof: expected 6 or 9, got {bad}"):
+            rf.Filter("mahony", dof=bad)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (5, 1))
+    with pytest.raises(ValueError, match="dof: expected 6 or 9, got 300"):
+        rf.rmse(q, q, dof=300)
+    for bad in (-1, 2**64):
+        with pytest.raises(ValueError, match=f"seed: expected a whole number in \\[0, 2\\*\\*64\\), got {bad}"):
+            rf.simulate("static", seed=bad)
