@@ -110,6 +110,15 @@ macro_rules! registry {
             fn screen_limits(&self) -> ScreenLimits {
                 match self { $(Self::$variant(p) => p.screen_limits(),)* }
             }
+            /// Both of one filter and agreeing on every shared parameter
+            /// ([`ParamSet::structural_difference`]).
+            fn same_structure(&self, other: &Self) -> bool {
+                match (self, other) {
+                    $((Self::$variant(a), Self::$variant(b)) => a.structural_difference(b).is_none(),)*
+                    #[allow(unreachable_patterns)]
+                    _ => false,
+                }
+            }
         }
 
         /// Any registered filter over lanes of type `T`: what the CLI and the batch engine run.
@@ -350,13 +359,7 @@ impl FilterSpec {
     /// false: `dof`, switches, whole numbers, screening limits, `shared` ones): the two can
     /// then run in lanes of one chunk, each with its own per-lane parameters.
     pub fn same_structure(&self, other: &FilterSpec) -> bool {
-        self.kind == other.kind
-            && self
-                .kind
-                .params()
-                .iter()
-                .filter(|info| !info.per_lane)
-                .all(|info| self.get(info.name) == other.get(info.name))
+        self.params.same_structure(&other.params)
     }
     /// The input-screening limits (`max_dt`, `max_gyr`, `max_acc`, `max_mag`) these
     /// parameters give the filter.

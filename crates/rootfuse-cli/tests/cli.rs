@@ -4,10 +4,12 @@ use rootfuse_eval::metrics::{Alignment, evaluate};
 use rootfuse_eval::sim::scenario;
 use rootfuse_io::{read_csv, read_estimates, write_recording};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 use common::{Scratch, bin};
+#[cfg(unix)]
+use common::{temporaries, terminate_when};
 
 fn temp_dir(name: &str) -> Scratch {
     common::temp_dir("cli", name)
@@ -718,44 +720,19 @@ fn signal_during_writing_leaves_no_temporary_file() {
         inputs.push(p);
     }
     let out = dir.join("o");
-    let mut child = bin()
-        .arg("run")
-        .args(&inputs)
-        .args(["--filter", "mahony", "--out"])
-        .arg(&out)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let temporary = |out: &Path| -> Vec<PathBuf> {
-        std::fs::read_dir(out)
-            .map(|d| {
-                d.filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| p.to_string_lossy().contains(".tmp."))
-                    .collect()
-            })
-            .unwrap_or_default()
-    };
     // Wait until a temporary file exists, then signal at once.
-    let start = std::time::Instant::now();
-    while temporary(&out).is_empty() {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "finished before any write was seen"
-        );
-        assert!(start.elapsed().as_secs() < 120, "no temporary file seen");
-        std::thread::sleep(std::time::Duration::from_micros(200));
-    }
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    let (code, stderr) = terminate_when(
+        bin()
+            .arg("run")
+            .args(&inputs)
+            .args(["--filter", "mahony", "--out"])
+            .arg(&out),
+        || !temporaries(&out).is_empty(),
+        "a temporary file",
+    );
+    assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("interrupted"), "{stderr}");
-    assert_eq!(temporary(&out), Vec::<PathBuf>::new());
+    assert_eq!(temporaries(&out), Vec::<PathBuf>::new());
     let written: Vec<PathBuf> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().path())

@@ -3,11 +3,12 @@
 //! file on SIGINT/SIGTERM and no empty `--out` after a failure, and write all the estimates
 //! of a run or none.
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 mod common;
 use common::columns::{fleet_columns, replace, write_parquet};
-use common::{Scratch, bin};
+#[cfg(unix)]
+use common::terminate_when;
+use common::{Scratch, bin, temporaries};
 
 fn temp_dir(name: &str) -> Scratch {
     common::temp_dir("files", name)
@@ -46,17 +47,6 @@ fn run_6d(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String)
     all.extend_from_slice(args);
     all.extend_from_slice(&[&"--filter", &"mahony", &"--dof", &"6"]);
     run(&all)
-}
-
-/// Temporary files (`*.tmp.<pid>`) in `dir`.
-fn temporaries(dir: &Path) -> Vec<PathBuf> {
-    std::fs::read_dir(dir)
-        .map(|d| {
-            d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.to_string_lossy().contains(".tmp."))
-                .collect()
-        })
-        .unwrap_or_default()
 }
 
 /// `run good.parquet --format csv --out .` beside the user's own `good.csv` used to replace
@@ -172,30 +162,14 @@ fn run_never_replaces_a_symbolic_link() {
 fn simulate_leaves_no_temporary_file() {
     let dir = temp_dir("simulate-signal");
     let out = dir.join("s.parquet");
-    let mut child = bin()
-        .args(["simulate", "--devices", "8", "--seconds", "20000", "--out"])
-        .arg(&out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = std::time::Instant::now();
-    while temporaries(&dir).is_empty() {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "finished before any write was seen"
-        );
-        assert!(start.elapsed().as_secs() < 120, "no temporary file seen");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    let (code, stderr) = terminate_when(
+        bin()
+            .args(["simulate", "--devices", "8", "--seconds", "20000", "--out"])
+            .arg(&out),
+        || !temporaries(&dir).is_empty(),
+        "a temporary file",
+    );
+    assert_eq!(code, Some(130), "{stderr}");
     assert_eq!(temporaries(&dir), Vec::<PathBuf>::new());
     assert!(!out.exists());
     // What SIGKILL would leave: removed by the next simulate of that output, and only that.
@@ -294,35 +268,20 @@ fn signal_writes_no_estimate() {
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     let out = dir.join("o");
-    let mut child = bin()
-        .arg("run")
-        .args([&first, &second])
-        .args(["--filter", "mahony", "--dof", "6", "--out"])
-        .arg(&out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = std::time::Instant::now();
-    while !temporaries(&out)
-        .iter()
-        .any(|p| p.to_string_lossy().contains("b.parquet.tmp."))
-    {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "finished before the second file was seen"
-        );
-        assert!(start.elapsed().as_secs() < 120, "no temporary file seen");
-        std::thread::sleep(std::time::Duration::from_micros(200));
-    }
-    let killed = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    let (code, stderr) = terminate_when(
+        bin()
+            .arg("run")
+            .args([&first, &second])
+            .args(["--filter", "mahony", "--dof", "6", "--out"])
+            .arg(&out),
+        || {
+            temporaries(&out)
+                .iter()
+                .any(|p| p.to_string_lossy().contains("b.parquet.tmp."))
+        },
+        "the second file's temporary file",
+    );
+    assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("no estimate written"), "{stderr}");
     assert_eq!(temporaries(&out), Vec::<PathBuf>::new());
     assert!(!out.join("a.parquet").exists());

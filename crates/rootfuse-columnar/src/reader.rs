@@ -268,10 +268,32 @@ impl FleetReader {
                 (source, parts, "Parquet", checked)
             }
         };
-        let reader = Self {
-            file: path.to_owned(),
+        Ok(Self::reading(
+            path.to_owned(),
+            stem,
             source,
-            format: name,
+            name,
+            parts,
+            gaps,
+            (has_mag, device_type),
+        ))
+    }
+
+    /// A reader at the start of `source` (`parts` row groups or record batches; `usize::MAX`
+    /// when a stream does not say), with the schema's findings `(has_mag, device_type)`.
+    fn reading(
+        file: PathBuf,
+        stem: String,
+        source: Source,
+        format: &'static str,
+        parts: usize,
+        gaps: ImuGaps,
+        (has_mag, device_type): (bool, Option<DataType>),
+    ) -> Self {
+        Self {
+            file,
+            source,
+            format,
             stem,
             gaps,
             parts,
@@ -281,8 +303,7 @@ impl FleetReader {
             device_type,
             empty_parts: Vec::new(),
             pending: None,
-        };
-        Ok(reader)
+        }
     }
 
     /// Reads the record batches of `reader` (any [`RecordBatchReader`]: batches in memory, an
@@ -320,20 +341,15 @@ impl FleetReader {
     ) -> Result<Self, ColumnarError> {
         let path = PathBuf::from(name);
         let (_, has_mag, device_type) = check_schema(&path, &reader.schema())?;
-        Ok(Self {
-            stem: name.to_string(),
-            file: path,
-            source: Source::Batches { reader },
-            format: "Arrow",
+        Ok(Self::reading(
+            path,
+            name.to_string(),
+            Source::Batches { reader },
+            "Arrow",
+            usize::MAX,
             gaps,
-            parts: usize::MAX,
-            part: 0,
-            rows_read: 0,
-            has_mag,
-            device_type,
-            empty_parts: Vec::new(),
-            pending: None,
-        })
+            (has_mag, device_type),
+        ))
     }
 
     /// The file read (the name given to [`from_batches`](Self::from_batches)).

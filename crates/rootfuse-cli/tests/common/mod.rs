@@ -4,6 +4,56 @@ use std::process::Command;
 
 pub mod columns;
 
+/// Temporary files (`*.tmp.<pid>`) in `dir`.
+// Not every test file that includes this module uses it.
+#[allow(dead_code)]
+pub fn temporaries(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .map(|d| {
+            d.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.to_string_lossy().contains(".tmp."))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Runs `cmd` (stdout discarded), sends it SIGTERM as soon as `ready()` holds, and returns its
+/// exit code and stderr. The run must still be going when `ready()` first holds (else it
+/// finished before `what` was seen), within 120 s.
+#[cfg(unix)]
+#[allow(dead_code)]
+pub fn terminate_when(
+    cmd: &mut Command,
+    ready: impl Fn() -> bool,
+    what: &str,
+) -> (Option<i32>, String) {
+    use std::process::Stdio;
+    let mut child = cmd
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !ready() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before {what} was seen"
+        );
+        assert!(start.elapsed().as_secs() < 120, "{what}: not seen");
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let output = child.wait_with_output().unwrap();
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
 /// The built `rootfuse` binary.
 pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rootfuse"))
