@@ -56,15 +56,21 @@ pub fn same_bits<S: SpecialFloat>(a: S, b: S) -> bool {
     a.bits() == b.bits() || (a.nan() && b.nan())
 }
 
-/// Where the BROAD CSV recordings are: `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv`.
-/// Returns `None` outside CI when absent (a fresh clone of the code alone); in CI (`CI` set)
-/// a missing data folder is an error, so a data test can never pass by not running.
+/// Where the BROAD CSV recordings are: `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv` beside
+/// the workspace. Returns `None` outside CI when absent (a fresh clone of the code alone); in
+/// CI (`CI` set) a missing data folder is an error, so a data test can never pass by not
+/// running.
 pub fn broad_dir() -> Option<std::path::PathBuf> {
+    // The workspace root: the folder of Cargo.lock above the package (this file is also the
+    // common module of member crates' tests).
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = manifest
+        .ancestors()
+        .find(|d| d.join("Cargo.lock").is_file())
+        .unwrap_or(manifest);
     let dir = std::env::var_os("ROOTFUSE_BROAD_DIR")
         .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/broad_csv")
-        });
+        .unwrap_or_else(|| root.join("../shared/broad_csv"));
     if dir.join("index.csv").is_file() {
         Some(dir)
     } else if std::env::var_os("CI").is_some() {

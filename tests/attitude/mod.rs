@@ -1,12 +1,4 @@
-//! Quaternions, frames, pre-processing, the filters and their configuration.
+//! The filters under bad samples, run through the batch engine (the attitude crate's own
+//! tests are in crates/rootfuse-attitude/tests, which cannot use the engine above it).
 mod bad_samples;
-mod configuration;
-mod filters;
-mod flagship;
-mod flagship_accuracy;
-mod frames;
-mod heading_pipeline;
-mod lsq_fusion;
-mod preprocess;
-mod quat;
-mod reconstruction_and_ecf_ekf;
+mod interop;

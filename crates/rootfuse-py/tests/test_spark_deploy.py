@@ -5,8 +5,9 @@ fresh virtual environment packed with venv-pack, shipped with `spark-submit --ar
 spark-submit): `local[2]` runs the tasks inside the driver's JVM, which does not unpack
 `--archives` into their working directory ("Cannot run program ./environment/bin/python"
 with Spark 4.3), so only a real executor, as on a cluster, tests the deployment.
-Each device's estimates equal the CLI's bit for bit. Slow (a wheel, a venv with pyarrow and
-pandas from PyPI, two JVM jobs): 2 min 15 s on the 2-core machine; in CI it must run (Java 17 is on the machine, scripts/test-all.sh installs the rest)."""
+Each device's estimates equal the CLI's bit for bit. Slow (a venv with pyarrow and pandas from
+PyPI, two JVM jobs); in CI it must run (Java 17 is on the machine, scripts/test-all.sh installs
+the rest and hands over the wheel it built, ROOTFUSE_WHEEL)."""
 
 import os
 import pathlib
@@ -51,6 +52,23 @@ def _tool(name):
     return str(BIN / name) if (BIN / name).exists() else shutil.which(name)
 
 
+def _wheel(out):
+    """The wheel scripts/test-all.sh built and installed for this test run (ROOTFUSE_WHEEL),
+    so the deployment ships the extension the other tests ran; run alone, a release wheel as
+    the README builds it."""
+    given = os.environ.get("ROOTFUSE_WHEEL")
+    if given:
+        return pathlib.Path(given)
+    subprocess.run(
+        [_tool("maturin"), "build", "--quiet", "--manifest-path", str(REPO / "crates/rootfuse-py/Cargo.toml"),
+         "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    (wheel,) = out.glob("rootfuse-*.whl")
+    return wheel
+
+
 @pytest.fixture(scope="module")
 def packed_env(tmp_path_factory):
     """rootfuse's wheel in a fresh venv with what the executors need, packed."""
@@ -60,14 +78,7 @@ def packed_env(tmp_path_factory):
             pytest.fail(f"the Spark deployment must run in CI: {why}")
         pytest.skip(f"Spark deployment not tested: {why}")
     d = tmp_path_factory.mktemp("deploy")
-    wheels = d / "wheels"
-    subprocess.run(
-        [_tool("maturin"), "build", "--quiet", "--manifest-path", str(REPO / "crates/rootfuse-py/Cargo.toml"),
-         "--out", str(wheels)],
-        check=True,
-        capture_output=True,
-    )
-    (wheel,) = wheels.glob("rootfuse-*.whl")
+    wheel = _wheel(d / "wheels")
     env = d / "env"
     subprocess.run([sys.executable, "-m", "venv", str(env)], check=True)
     # What an executor imports: rootfuse (numpy) and Spark's Arrow functions (pyarrow, pandas).

@@ -1,7 +1,7 @@
 //! Quaternion kernels against closed forms, round trips, nalgebra as an independent
 //! reference, and lanes equal to scalars bit for bit.
 use crate::common::same_bits;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use rootfuse_attitude::{Lane, Quat, Vec3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -15,6 +15,14 @@ fn unit_quat() -> impl Strategy<Value = Quat<f64>> {
 }
 fn vec3(range: f64) -> impl Strategy<Value = Vec3<f64>> {
     (-range..range, -range..range, -range..range).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+/// nalgebra's quaternion of the same rotation, built from the components (nalgebra's
+/// `Quaternion::new` is `w, i, j, k`, Hamilton), independently of the crate's conversions.
+fn to_nalgebra(q: Quat<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::new_unchecked(Quaternion::new(q.w, q.x, q.y, q.z))
+}
+fn from_nalgebra(q: UnitQuaternion<f64>) -> Quat<f64> {
+    Quat::new(q.w, q.i, q.j, q.k)
 }
 fn to_f32(q: Quat<f64>) -> Quat<f32> {
     Quat::new(q.w as f32, q.x as f32, q.y as f32, q.z as f32)
@@ -113,23 +121,22 @@ proptest! {
     /// nalgebra is an independent implementation of the same convention.
     #[test]
     fn agrees_with_nalgebra(q in unit_quat(), v in vec3(10.0), e in (-PI..PI, -1.5..1.5f64, -PI..PI)) {
-        let nq: UnitQuaternion<f64> = q.into();
-        let nv: Vector3<f64> = nq * Vector3::from(v);
-        prop_assert!((Vec3::from(nv) - q.rotate(v)).max_abs() < 1e-13);
+        let nq = to_nalgebra(q);
+        let nv: Vector3<f64> = nq * Vector3::new(v.x, v.y, v.z);
+        prop_assert!((Vec3::new(nv.x, nv.y, nv.z) - q.rotate(v)).max_abs() < 1e-13);
         prop_assert!((q.rotate_inverse(q.rotate(v)) - v).max_abs() < 1e-13);
-        let back: Quat<f64> = nq.into();
-        prop_assert!(back.angle_to(q) < 4.0 * f64::EPSILON);
+        prop_assert!(from_nalgebra(nq).angle_to(q) < 4.0 * f64::EPSILON);
         let (yaw, pitch, roll) = e;
         let ne = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
-        prop_assert!(Quat::<f64>::from(ne).angle_to(Quat::from_euler_zyx(yaw, pitch, roll)) < 1e-14);
+        prop_assert!(from_nalgebra(ne).angle_to(Quat::from_euler_zyx(yaw, pitch, roll)) < 1e-14);
         let m = q.to_rotation_matrix();
         let nm = nq.to_rotation_matrix();
         for i in 0..3 { for j in 0..3 { prop_assert!((m.m[i][j] - nm[(i, j)]).abs() < 1e-14); } }
         let mut a = [0.0; 3];
         for (k, x) in a.iter_mut().enumerate() { *x = v.to_array()[k] * 0.1; }
         let rv = Vec3::from_array(a);
-        let nr = UnitQuaternion::from_scaled_axis(Vector3::from(rv));
-        prop_assert!(Quat::<f64>::from(nr).angle_to(Quat::from_rotation_vector(rv)) < 1e-14);
+        let nr = UnitQuaternion::from_scaled_axis(Vector3::new(rv.x, rv.y, rv.z));
+        prop_assert!(from_nalgebra(nr).angle_to(Quat::from_rotation_vector(rv)) < 1e-14);
     }
 
     /// Matrix ↔ quaternion ↔ Euler round trips, including near 180° and near gimbal lock.

@@ -1,0 +1,2 @@
+//! The beacon crate's integration tests: the heading pipeline with iBeacon headings.
+mod heading_pipeline;
