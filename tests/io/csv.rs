@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A fresh, empty folder under the system temp dir, unique per call (tests run in parallel),
 /// removed with everything in it when the guard is dropped (at the end of the test).
-struct TempDir(PathBuf);
+pub(super) struct TempDir(PathBuf);
 
 impl std::ops::Deref for TempDir {
     type Target = Path;
@@ -32,7 +32,7 @@ impl Drop for TempDir {
     }
 }
 
-fn temp_dir(tag: &str) -> TempDir {
+pub(super) fn temp_dir(tag: &str) -> TempDir {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
     let k = COUNTER.fetch_add(1, Ordering::Relaxed);
     let dir =
@@ -42,7 +42,7 @@ fn temp_dir(tag: &str) -> TempDir {
     TempDir(dir)
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+pub(super) fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p
@@ -174,11 +174,16 @@ fn error_partial_groups() {
     );
 }
 
+/// The line and 1-based column index of an error's place.
+fn at(place: &rootfuse_io::Place) -> (u64, Option<usize>) {
+    (place.line, place.column.as_ref().map(|c| c.1))
+}
+
 #[test]
 fn error_duplicate_column() {
     let (e, msg, _) = read_err("dup", "t,gx,gy,gz,ax,ay,az,gx\n0,0,0,0,0,0,1,0\n");
     assert!(
-        matches!(e, ReadError::DuplicateColumn { index: 8, .. }),
+        matches!(e, ReadError::DuplicateColumn { ref place } if at(place) == (1, Some(8))),
         "{msg}"
     );
     assert!(msg.contains("line 1, column `gx` (#8)"), "{msg}");
@@ -192,11 +197,7 @@ fn error_non_numeric_cell() {
     assert!(
         matches!(
             e,
-            ReadError::NotNumeric {
-                line: 3,
-                index: 6,
-                ..
-            }
+            ReadError::NotNumeric { ref place, .. } if at(place) == (3, Some(6))
         ),
         "{msg}"
     );
@@ -214,12 +215,7 @@ fn error_field_count() {
     assert!(
         matches!(
             e,
-            ReadError::FieldCount {
-                line: 3,
-                expected: 15,
-                found: 14,
-                ..
-            }
+            ReadError::FieldCount { ref place, expected: 15, found: 14 } if place.line == 3
         ),
         "{msg}"
     );
@@ -233,17 +229,13 @@ fn error_non_finite_time() {
     assert!(
         matches!(
             e,
-            ReadError::NonFiniteTime {
-                line: 3,
-                index: 7,
-                ..
-            }
+            ReadError::NonFiniteTime { ref place, .. } if at(place) == (3, Some(7))
         ),
         "{msg}"
     );
     assert!(msg.contains("line 3, column `t` (#7)"), "{msg}");
     let (e, _, _) = read_err("tnan", "t,gx,gy,gz,ax,ay,az\nNaN,0,0,0,0,0,1\n");
-    assert!(matches!(e, ReadError::NonFiniteTime { line: 2, .. }));
+    assert!(matches!(e, ReadError::NonFiniteTime { ref place, .. } if place.line == 2));
 }
 
 #[test]
@@ -253,18 +245,14 @@ fn error_non_monotonic_time() {
     assert!(
         matches!(
             e,
-            ReadError::NonMonotonicTime {
-                line: 4,
-                index: 1,
-                ..
-            }
+            ReadError::NonMonotonicTime { ref place, .. } if at(place) == (4, Some(1))
         ),
         "{msg}"
     );
     assert!(msg.contains("line 4, column `t` (#1)"), "{msg}");
     let text = "t,gx,gy,gz,ax,ay,az\n0.02,0,0,0,0,0,1\n0.01,0,0,0,0,0,1\n";
     let (e, _, _) = read_err("tback", text);
-    assert!(matches!(e, ReadError::NonMonotonicTime { line: 3, .. }));
+    assert!(matches!(e, ReadError::NonMonotonicTime { ref place, .. } if place.line == 3));
 }
 
 #[test]
@@ -275,11 +263,7 @@ fn error_nan_in_imu_columns() {
     assert!(
         matches!(
             e,
-            ReadError::NonFiniteImu {
-                line: 3,
-                index: 9,
-                ..
-            }
+            ReadError::NonFiniteImu { ref place, .. } if at(place) == (3, Some(9))
         ),
         "{msg}"
     );
@@ -289,11 +273,7 @@ fn error_nan_in_imu_columns() {
     assert!(
         matches!(
             e,
-            ReadError::NonFiniteImu {
-                line: 2,
-                index: 2,
-                ..
-            }
+            ReadError::NonFiniteImu { ref place, .. } if at(place) == (2, Some(2))
         ),
         "{msg}"
     );
@@ -306,11 +286,7 @@ fn error_infinite_truth() {
     assert!(
         matches!(
             e,
-            ReadError::InfiniteTruth {
-                line: 2,
-                index: 13,
-                ..
-            }
+            ReadError::InfiniteTruth { ref place, .. } if at(place) == (2, Some(13))
         ),
         "{msg}"
     );
@@ -319,17 +295,13 @@ fn error_infinite_truth() {
 
 #[test]
 fn error_use_not_binary() {
-    for bad in ["2", "0.5", "yes", ""] {
+    for bad in ["2", "0.5", "yes"] {
         let text = format!("{HEADER}\n0,0,0,0,0,0,9.8,1,2,3,1,0,0,0,{bad}\n");
         let (e, msg, _) = read_err("use", &text);
         assert!(
             matches!(
                 e,
-                ReadError::BadUse {
-                    line: 2,
-                    index: 15,
-                    ..
-                }
+                ReadError::BadUse { ref place, .. } if at(place) == (2, Some(15))
             ),
             "{msg}"
         );
@@ -382,10 +354,10 @@ fn writes_estimates_atomically_and_exactly() {
     let t = [0.0, 0.1, 0.2];
     let q = [
         Quat::new(1.0, 0.0, 0.0, 0.0),
-        Quat::new(0.1f64.sqrt(), 0.3, -0.2, 1e-300),
-        Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+        Quat::new(0.1f64.sqrt(), 0.3, -0.2, 0.77f64.sqrt()),
+        Quat::new(0.0, 0.0, 1.0, 0.0),
     ];
-    let flag = [0.0, 1.0, 2.5];
+    let flag = [f64::NAN, 1e-300, 2.5];
     write_estimates(&p, &t, &q, &[("flag", &flag)]).unwrap();
     let text = std::fs::read_to_string(&p).unwrap();
     let mut lines = text.lines();
@@ -396,7 +368,8 @@ fn writes_estimates_atomically_and_exactly() {
         .split(',')
         .map(|s| s.parse().unwrap())
         .collect();
-    assert_eq!(row, vec![0.0, 1.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_eq!(row[..5], [0.0, 1.0, 0.0, 0.0, 0.0]);
+    assert!(row[5].is_nan());
     let row: Vec<f64> = lines
         .next()
         .unwrap()
@@ -405,8 +378,9 @@ fn writes_estimates_atomically_and_exactly() {
         .collect();
     // Shortest round-trip formatting: the same bits come back.
     assert_eq!(row[1].to_bits(), 0.1f64.sqrt().to_bits());
-    assert_eq!(row[4], 1e-300);
-    assert!(lines.next().unwrap().contains("NaN"));
+    assert_eq!(row[4].to_bits(), 0.77f64.sqrt().to_bits());
+    assert_eq!(row[5], 1e-300);
+    assert!(text.lines().nth(1).unwrap().ends_with(",NaN"));
     // Only the target is left behind (no temporary file).
     let files: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
     assert_eq!(files.len(), 1);
@@ -438,6 +412,27 @@ fn writes_estimates_atomically_and_exactly() {
     }
     let e = write_estimates(dir.join("no/such/dir.csv"), &t, &q, &[]).unwrap_err();
     assert!(matches!(e, WriteError::Io { .. }), "{e}");
+
+    // What read_estimates would refuse is not written: the pair agrees.
+    let nan = [q[0], Quat::new(f64::NAN, 0.0, 0.0, 0.0), q[2]];
+    let zero = [q[0], q[1], Quat::new(0.0, 0.0, 0.0, 0.0)];
+    for (t, q, row) in [
+        (&[0.0, 0.1, 0.1], &q, 2),
+        (&[0.0, f64::INFINITY, 0.2], &q, 1),
+        (&t, &nan, 1),
+        (&t, &zero, 2),
+    ] {
+        let e = write_estimates(&p, t, q, &[]).unwrap_err();
+        assert!(
+            matches!(e, WriteError::Unreadable { row: r, .. } if r == row),
+            "{e}"
+        );
+    }
+    assert_eq!(
+        read_estimates(&p).unwrap().t,
+        [0.0],
+        "the file is unchanged"
+    );
 }
 
 #[test]
@@ -827,11 +822,7 @@ fn imu_gaps_are_kept_on_request() {
     let p = write(&dir, "gaps.csv", &text);
     assert!(matches!(
         read_csv(&p),
-        Err(ReadError::NonFiniteImu {
-            line: 3,
-            index: 2,
-            ..
-        })
+        Err(ReadError::NonFiniteImu { ref place, .. }) if at(place) == (3, Some(2))
     ));
     let rec = read_csv_with(&p, ImuGaps::Keep).unwrap();
     assert!(rec.gyr[1].x.is_nan() && rec.acc[1].z == f64::INFINITY);
@@ -839,7 +830,7 @@ fn imu_gaps_are_kept_on_request() {
     let bad_time = write(&dir, "t.csv", "t,gx,gy,gz,ax,ay,az\nNaN,0,0,0,0,0,1\n");
     assert!(matches!(
         read_csv_with(&bad_time, ImuGaps::Keep),
-        Err(ReadError::NonFiniteTime { line: 2, .. })
+        Err(ReadError::NonFiniteTime { ref place, .. }) if place.line == 2
     ));
 }
 
@@ -851,7 +842,7 @@ fn quaternions_far_from_unit_norm_are_refused() {
         format!("{HEADER}\n0,0,0,0,0,0,9.8,1,2,3,1,0,0,0,1\n0.1,0,0,0,0,0,9.8,1,2,3,0,0,0,0,1\n");
     let (e, msg, _) = read_err("qzero", &text);
     assert!(
-        matches!(e, ReadError::NotUnitQuaternion { line: 3, .. }),
+        matches!(e, ReadError::NotUnitQuaternion { ref place, .. } if place.line == 3),
         "{msg}"
     );
     assert!(
@@ -866,7 +857,7 @@ fn quaternions_far_from_unit_norm_are_refused() {
     );
     let e = read_estimates(&est).unwrap_err();
     assert!(
-        matches!(e, ReadError::NotUnitQuaternion { line: 4, .. }),
+        matches!(e, ReadError::NotUnitQuaternion { ref place, .. } if place.line == 4),
         "{e}"
     );
     let est = write(&dir, "n.csv", "t,qw,qx,qy,qz\n0,1,0,0,0\n1,NaN,0,0,0\n");
@@ -883,7 +874,10 @@ fn quaternions_far_from_unit_norm_are_refused() {
 fn messages_escape_control_characters() {
     let text = "t,gx,gy,gz,ax,ay,az,use\n0,0,0,0,0,0,9.8,\u{0}\n";
     let (e, msg, _) = read_err("nul", text);
-    assert!(matches!(e, ReadError::BadUse { line: 2, .. }), "{msg}");
+    assert!(
+        matches!(e, ReadError::BadUse { ref place, .. } if place.line == 2),
+        "{msg}"
+    );
     assert!(
         msg.contains("`\\u{0}` is not 0 or 1") && !msg.contains('\0'),
         "{msg}"

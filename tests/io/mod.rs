@@ -1,2 +1,3 @@
 //! Reading and writing recordings and estimates.
 mod csv;
+mod files;

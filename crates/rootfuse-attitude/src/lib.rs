@@ -44,6 +44,8 @@ pub mod registry;
 pub mod sample;
 #[cfg(feature = "std")]
 pub mod smooth;
+#[cfg(feature = "std")]
+pub mod units;
 pub mod vec3;
 
 pub use calibration::SensorCalibration;

@@ -17,3 +17,4 @@ mod lsq_fusion;
 mod preprocess;
 mod quat;
 mod reconstruction_and_ecf_ekf;
+mod units;

@@ -20,6 +20,7 @@ macro_rules! out {
 use std::process::ExitCode;
 
 mod calibrate;
+mod checks;
 mod demo;
 mod device_params;
 mod engine;

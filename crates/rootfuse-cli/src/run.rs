@@ -1,6 +1,7 @@
 //! `rootfuse run`: filter IMU files (CSV, Parquet, Arrow), write one estimate file per input,
 //! streaming (see [`crate::stream`]).
 use crate::Outcome;
+use crate::checks::InputChecks;
 use crate::engine::{Columns, PrecisionArg};
 use crate::filter_args::FilterArgs;
 use crate::outputs::{Ledger, missing_folders, remove_empty, source_of};
@@ -8,9 +9,10 @@ use crate::stream::{Job, Totals, run_columnar, run_csv};
 use clap::Args;
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::smooth::forward_backward;
+use rootfuse_attitude::units::Units;
 use rootfuse_batch::{RejectionTotals, samples_with_missing_imu};
 use rootfuse_columnar::Format;
-use rootfuse_io::{ImuGaps, list_dir, read_csv_with, stale_temporaries, write_estimates};
+use rootfuse_io::{ImuGaps, read_csv_in, scan_dir, stale_temporaries, write_estimates};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -67,10 +69,20 @@ pub struct RunArgs {
     /// any failed.
     #[arg(long)]
     keep_going: bool,
-    /// Refuse a file with a NaN or infinite IMU value. Without it such values (dropped
-    /// packets) are kept and the filter skips them: the whole sample for the gyroscope, that
-    /// correction for the accelerometer or magnetometer, counted in the summary and in
-    /// `--flags`.
+    /// Units of the inputs, converted on read to the filters' s, rad/s, m/s² and µT: a
+    /// comma-separated list of `time=s|ms|us|ns`, `gyro=rad/s|deg/s`, `acc=m/s2|g|mg`,
+    /// `mag=uT|nT|G|mG`, or a factor to the filters' unit for raw counts (`acc=0.000598`);
+    /// sensors left out are in the filters' units. Each input's data are checked against
+    /// these units: a sensor whose readings look like another unit is named with the option
+    /// that declares it.
+    #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
+    units: Units,
+    /// Make every warning about an input an error (exit 2, no estimate written): readings that
+    /// look like another unit than declared, and NaN or infinite IMU values (without it such
+    /// values, dropped packets, are kept and the filter skips them: the whole sample for the
+    /// gyroscope, that correction for the accelerometer or magnetometer, counted in the summary
+    /// and in `--flags`). A sensor whose every sample or correction the filter skipped is an
+    /// error either way.
     #[arg(long)]
     strict: bool,
     /// Per-device parameters: a CSV, Parquet or Arrow table with a `device` column (as the
@@ -184,6 +196,8 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             },
             format,
             gaps,
+            units: args.units,
+            strict: args.strict,
             keep_going: args.keep_going,
             nine_d: spec.uses_magnetometer(),
             // `--dof 9` or `--param dof=9` asked for the magnetometer; the filters' default
@@ -261,6 +275,12 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     }
 }
 
+/// `--units` on the command line.
+pub fn parse_units(list: &str) -> Result<Units, String> {
+    list.parse()
+        .map_err(|e: rootfuse_attitude::units::UnitsError| e.to_string())
+}
+
 /// `--format` on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum FormatArg {
@@ -282,8 +302,10 @@ impl From<FormatArg> for Format {
     }
 }
 
-/// The input files: files as given, folders expanded to their CSV files (but `index.csv`)
-/// or, when there are none, their Parquet and Arrow files, sorted.
+/// The input files: files as given, folders expanded to their CSV recordings (the trials of
+/// their `index.csv`, or every `.csv` but `index.csv`) or, when there are none, their Parquet
+/// and Arrow files (`rootfuse_io::scan_dir`); a note names the data files a folder leaves out
+/// and why.
 fn input_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
     for input in inputs {
@@ -291,23 +313,17 @@ fn input_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
             files.push(input.clone());
             continue;
         }
-        let mut listed = list_dir(input).map_err(|e| e.to_string())?;
-        if listed.is_empty() {
-            let entries = std::fs::read_dir(input)
-                .map_err(|e| format!("{}: cannot read: {e}", input.display()))?;
-            listed = entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.is_file() && Format::of_path(p).is_some_and(|f| f != Format::Csv))
-                .collect();
-            listed.sort();
-        }
-        if listed.is_empty() {
+        let listing = scan_dir(input).map_err(|e| e.to_string())?;
+        if listing.files.is_empty() {
             return Err(format!(
                 "{}: no .csv files in the folder (nor .parquet or .arrow)",
                 input.display()
             ));
         }
-        files.extend(listed);
+        if let Some(note) = listing.note() {
+            eprintln!("note: {note}");
+        }
+        files.extend(listing.files);
     }
     Ok(files)
 }
@@ -406,9 +422,11 @@ fn smooth_files(
     written: &mut Vec<(PathBuf, PathBuf)>,
 ) -> Result<Totals, String> {
     let mut totals = Totals::default();
-    for (file, out) in files.iter().zip(outs) {
+    let mut checks = InputChecks::new(job.units, job.strict);
+    for (d, (file, out)) in files.iter().zip(outs).enumerate() {
         let result = (|| -> Result<(), String> {
-            let mut rec = read_csv_with(file, job.gaps).map_err(|e| e.to_string())?;
+            let mut rec = read_csv_in(file, job.gaps, job.units).map_err(|e| e.to_string())?;
+            checks.observe_recording(d as u32, &rec);
             if let Some(cal) = job.calibration {
                 crate::calibrate::apply_calibration(&mut rec, cal);
             }
@@ -424,9 +442,17 @@ fn smooth_files(
             if interrupted() {
                 exit_interrupted();
             }
+            let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
+            let nine_d = job.nine_d && rec.mag.is_some();
+            let verdict = checks.judge(&file.display().to_string(), d as u32, r, nine_d);
+            for w in &verdict.warnings {
+                eprintln!("warning: {w}");
+            }
+            if let Some(e) = verdict.error {
+                return Err(e);
+            }
             write_estimates(out, &rec.t, &smoothed.quat, &[]).map_err(|e| e.to_string())?;
             written.push((file.clone(), out.clone()));
-            let r = RejectionTotals::of_lane(&smoothed.rejections, 0);
             totals.rejections += r;
             totals.missing(samples_with_missing_imu(&rec.gyr, &rec.acc, rec.mag.as_deref()) as u64);
             totals.samples += rec.len() as u64;

@@ -5,9 +5,11 @@
 //! step), so several files share the SIMD lanes as before. Parquet and Arrow inputs are one
 //! fleet: read in order, their rows grouped by the `device` column (devices keep their
 //! filters from one file to the next, so a folder of files split by time runs as one).
+use crate::checks::InputChecks;
 use crate::run::{exit_interrupted, interrupted};
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_attitude::units::Units;
 use rootfuse_batch::{Columns, FleetBlock, FleetRunner, OnError, Precision, RejectionTotals};
 use rootfuse_columnar::{
     BLOCK_ROWS, ColumnarError, Devices, EstimateWriter, FleetBlocks, FleetChunk, FleetReader,
@@ -23,6 +25,9 @@ pub struct Job<'a> {
     pub columns: Columns,
     pub format: Format,
     pub gaps: ImuGaps,
+    /// `--units`: what the inputs are written in; `--strict`: unit findings are errors.
+    pub units: Units,
+    pub strict: bool,
     pub keep_going: bool,
     /// The filter uses the magnetometer; `dof_explicit`: the user asked for it.
     pub nine_d: bool,
@@ -92,7 +97,7 @@ pub fn check_mag(job: &Job, file: &Path, has_mag: bool) -> Result<(), String> {
 
 /// One CSV input being streamed.
 struct CsvInput {
-    blocks: CsvBlocks<std::io::BufReader<std::fs::File>>,
+    blocks: CsvBlocks<std::fs::File>,
     buffer: rootfuse_attitude::Recording,
     writer: EstimateWriter,
     device: u32,
@@ -152,7 +157,9 @@ pub fn run_csv(
     let mut inputs: Vec<CsvInput> = Vec::new();
     for (i, (file, out)) in files.iter().zip(outs).enumerate() {
         let opened = (|| -> Result<CsvInput, String> {
-            let mut blocks = CsvBlocks::open(file, job.gaps).map_err(|e| e.to_string())?;
+            let mut blocks = CsvBlocks::open(file, job.gaps)
+                .map_err(|e| e.to_string())?
+                .with_units(job.units);
             let mut buffer = blocks.empty_recording();
             if blocks
                 .read_into(&mut buffer, rows_per_file)
@@ -184,6 +191,7 @@ pub fn run_csv(
         return Err("no input could be read".into());
     }
     let devices = Devices::default();
+    let mut checks = InputChecks::new(job.units, job.strict);
     while !inputs.is_empty() {
         if interrupted() {
             // Dropping the writers and staged files removes their temporary files.
@@ -192,6 +200,7 @@ pub fn run_csv(
             exit_interrupted();
         }
         let (mut block, ranges) = csv_block(&inputs);
+        checks.observe(&block);
         job.calibrate(&mut block);
         // CSV rows were checked (time finite, increasing) by the reader already.
         let est = runner
@@ -224,9 +233,25 @@ pub fn run_csv(
                 Ok(true) => still.push(input),
                 Ok(false) => {
                     let file = files[input.device as usize].clone();
+                    let rejections = runner.rejections(input.device);
+                    let nine_d = job.nine_d && input.blocks.has_mag();
+                    let verdict = checks.judge(
+                        &file.display().to_string(),
+                        input.device,
+                        rejections,
+                        nine_d,
+                    );
+                    for w in &verdict.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    if let Some(e) = verdict.error {
+                        // The writer dropped removes the estimate in progress.
+                        totals.fail(e, job.keep_going)?;
+                        continue;
+                    }
                     staged.push((file, input.writer.close().map_err(|e| e.to_string())?));
                     totals.files += 1;
-                    totals.rejections += runner.rejections(input.device);
+                    totals.rejections += rejections;
                     totals.missing(input.missing_imu);
                 }
                 Err(e) => totals.fail(e, job.keep_going)?,
@@ -305,12 +330,20 @@ pub fn run_columnar(
         OnError::Stop
     };
     let mut any = false;
+    let mut checks = InputChecks::new(job.units, job.strict);
+    // The magnetometer is judged only where every file has one.
+    let mut fleet_mag = true;
     for (file, out) in files.iter().zip(outs) {
         let mut file_totals = Totals::default();
+        let fleet = Fleet {
+            runner: &mut runner,
+            devices: &mut devices,
+            checks: &mut checks,
+            has_mag: &mut fleet_mag,
+        };
         let result = run_fleet_file(
             job,
-            &mut runner,
-            &mut devices,
+            fleet,
             on_error,
             &names,
             file,
@@ -333,9 +366,7 @@ pub fn run_columnar(
     if !any {
         return Err("no input could be read".into());
     }
-    for d in 0..devices.len() {
-        totals.rejections += runner.rejections(d as u32);
-    }
+    judge_devices(job, &runner, &devices, &checks, fleet_mag, &mut totals)?;
     if let Some(table) = job.device_specs {
         let unseen: Vec<&str> = devices.unseen().collect();
         table.report(devices.len() - labels.len(), &unseen);
@@ -354,11 +385,62 @@ fn fleet_runner(job: &Job, specs: &[FilterSpec]) -> Result<FleetRunner, String> 
     })
 }
 
+/// Warnings about devices beyond this many are summed up in one line.
+const SHOWN_WARNINGS: usize = 5;
+
+/// Judges every device of a fleet run once all files have run (see [`InputChecks::judge`]):
+/// warnings printed (the first few), an all-skipped sensor an error (the run's, or under
+/// `--keep-going` a failed device), rejections summed into `totals`.
+fn judge_devices(
+    job: &Job,
+    runner: &FleetRunner,
+    devices: &Devices,
+    checks: &InputChecks,
+    has_mag: bool,
+    totals: &mut Totals,
+) -> Result<(), String> {
+    let mut warnings = 0usize;
+    for d in 0..devices.len() as u32 {
+        let rejections = runner.rejections(d);
+        totals.rejections += rejections;
+        let what = format!("device {}", devices.label(d));
+        let verdict = checks.judge(&what, d, rejections, job.nine_d && has_mag);
+        for w in &verdict.warnings {
+            if warnings < SHOWN_WARNINGS {
+                eprintln!("warning: {w}");
+            }
+            warnings += 1;
+        }
+        if let Some(e) = verdict.error {
+            if !job.keep_going {
+                return Err(e);
+            }
+            eprintln!("error: {e}");
+            totals.failed_devices += 1;
+        }
+    }
+    if warnings > SHOWN_WARNINGS {
+        eprintln!(
+            "warning: {} more warning(s) like these about other devices",
+            warnings - SHOWN_WARNINGS
+        );
+    }
+    Ok(())
+}
+
+/// The state of a fleet run that its files share.
+struct Fleet<'a> {
+    runner: &'a mut FleetRunner,
+    devices: &'a mut Devices,
+    checks: &'a mut InputChecks,
+    /// Cleared by a file without magnetometer columns.
+    has_mag: &'a mut bool,
+}
+
 #[allow(clippy::too_many_arguments)]
 fn run_fleet_file(
     job: &Job,
-    runner: &mut FleetRunner,
-    devices: &mut Devices,
+    fleet: Fleet,
     on_error: OnError,
     names: &[&str],
     file: &Path,
@@ -367,8 +449,17 @@ fn run_fleet_file(
     staged: &mut StagedFiles,
 ) -> Result<Staged, String> {
     let text = |e: ColumnarError| e.to_string();
-    let mut reader = FleetReader::open(file, job.gaps).map_err(text)?;
+    let Fleet {
+        runner,
+        devices,
+        checks,
+        has_mag,
+    } = fleet;
+    let mut reader = FleetReader::open(file, job.gaps)
+        .map_err(text)?
+        .with_units(job.units);
     check_mag(job, file, reader.has_mag())?;
+    *has_mag &= reader.has_mag();
     let mut writer =
         EstimateWriter::create(out, job.format, reader.device_type(), names).map_err(text)?;
     let mut blocks = FleetBlocks::new();
@@ -381,6 +472,7 @@ fn run_fleet_file(
         }
         let Some((chunk, est)) = blocks
             .next_block(&mut reader, devices, runner, on_error, |chunk| {
+                checks.observe(&chunk.block);
                 job.calibrate(&mut chunk.block)
             })
             .map_err(text)?

@@ -92,7 +92,7 @@ pub enum ColumnarError {
         problem: String,
     },
     /// A device's time stamp is not finite or does not increase.
-    #[error("{file}: {part}, row {row}, column `t` (device {device}): {source}")]
+    #[error("{file}: {part}, row {row}, column `t` (device {device}): {source}{hint}")]
     Time {
         /// The file.
         file: PathBuf,
@@ -105,6 +105,8 @@ pub enum ColumnarError {
         /// What is wrong.
         #[source]
         source: rootfuse_batch::FleetError,
+        /// What may be the cause, with a leading `; ` (empty when nothing is known).
+        hint: &'static str,
     },
     /// A per-device parameter table has a bad cell ([`DeviceParams`](crate::DeviceParams)).
     #[error("{file}: {place}column `{column}`: {problem}")]
@@ -139,7 +141,8 @@ impl From<rootfuse_io::WriteError> for ColumnarError {
         let file = match &e {
             rootfuse_io::WriteError::Io { file, .. }
             | rootfuse_io::WriteError::Length { file, .. }
-            | rootfuse_io::WriteError::BadColumnName { file, .. } => file.clone(),
+            | rootfuse_io::WriteError::BadColumnName { file, .. }
+            | rootfuse_io::WriteError::Unreadable { file, .. } => file.clone(),
         };
         let message = e.to_string();
         let message = message

@@ -12,6 +12,7 @@ use parquet::arrow::arrow_reader::{
     ParquetRecordBatchReaderBuilder,
 };
 use rootfuse_attitude::Vec3;
+use rootfuse_attitude::units::Units;
 use rootfuse_batch::FleetBlock;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -201,6 +202,7 @@ pub struct FleetReader {
     format: &'static str,
     stem: String,
     gaps: ImuGaps,
+    units: Units,
     parts: usize,
     part: usize,
     rows_read: u64,
@@ -296,6 +298,7 @@ impl FleetReader {
             format,
             stem,
             gaps,
+            units: Units::default(),
             parts,
             part: 0,
             rows_read: 0,
@@ -377,6 +380,13 @@ impl FleetReader {
         self.rows_read
     }
 
+    /// Reads the fleet as written in `units`: every block is converted to the filters' units
+    /// (s, rad/s, m/s², µT) as it is read.
+    pub fn with_units(mut self, units: Units) -> Self {
+        self.units = units;
+        self
+    }
+
     /// The next block (at most [`BLOCK_ROWS`] rows, never empty), `None` at the end.
     pub fn next_chunk(
         &mut self,
@@ -400,7 +410,12 @@ impl FleetReader {
             }
             let first_row = self.rows_read;
             self.rows_read += batch.num_rows() as u64;
-            let chunk = self.convert(&batch, part, first_row, devices);
+            let chunk = self.convert(&batch, part, first_row, devices).map(|mut c| {
+                let b = &mut c.block;
+                self.units
+                    .convert(&mut b.t, &mut b.gyr, &mut b.acc, b.mag.as_deref_mut());
+                c
+            });
             if let Source::IpcFile { map, .. } | Source::IpcStream { map, .. } = &self.source {
                 // The block's values are copied out: let its pages go.
                 map.release();

@@ -67,6 +67,12 @@ impl FleetBlocks {
             row: chunk.first_row + e.row() as u64,
             device: devices.label(e.device()).to_string(),
             source: e,
+            // Time restarting in a file without a device column: several devices' rows.
+            hint: if reader.device_type().is_none() {
+                "; the file has no `device` column, so all its rows are one device: if it holds several, name each row's device in a `device` column"
+            } else {
+                ""
+            },
         }
     }
 }

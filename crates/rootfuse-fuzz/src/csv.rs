@@ -49,13 +49,13 @@ pub fn csv_reader(data: &[u8]) {
                 "message without the file: {msg}"
             );
             let data_line = match &e {
-                ReadError::FieldCount { line, .. }
-                | ReadError::NotNumeric { line, .. }
-                | ReadError::NonFiniteTime { line, .. }
-                | ReadError::NonMonotonicTime { line, .. }
-                | ReadError::NonFiniteImu { line, .. }
-                | ReadError::InfiniteTruth { line, .. }
-                | ReadError::BadUse { line, .. } => Some(*line),
+                ReadError::FieldCount { place, .. }
+                | ReadError::NotNumeric { place, .. }
+                | ReadError::NonFiniteTime { place, .. }
+                | ReadError::NonMonotonicTime { place, .. }
+                | ReadError::NonFiniteImu { place, .. }
+                | ReadError::InfiniteTruth { place, .. }
+                | ReadError::BadUse { place, .. } => Some(place.line),
                 _ => None,
             };
             if let Some(line) = data_line {

@@ -1,11 +1,13 @@
 //! Files that appear complete or not at all: written under a temporary name beside the
 //! target, then renamed into place.
 
-use crate::csv_format::{WriteError, check_name, push_all, temporary_path};
+use crate::error::WriteError;
+use crate::format::{check_name, push_all};
 use std::borrow::ToOwned;
+use std::format;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::string::String;
+use std::string::{String, ToString};
 use std::vec::Vec;
 
 /// A file being written to [`temporary_path`] and renamed to its final path by
@@ -236,4 +238,42 @@ impl CsvEstimateWriter {
     pub fn close(self) -> Result<Staged, WriteError> {
         self.file.close()
     }
+}
+
+/// The temporary file that process `pid` writes before renaming it to `path`:
+/// `<path>.tmp.<pid>`, beside it (a rename is atomic only within one file system).
+pub fn temporary_path(path: &Path, pid: u32) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_owned();
+    name.push(format!(".tmp.{pid}"));
+    path.with_file_name(name)
+}
+
+/// Temporary files of writes to `path` by other processes (`<path>.tmp.<pid>`, see
+/// [`temporary_path`]) that exist now: what a process killed while writing `path` left
+/// behind. The final `path` of such a write is either the previous complete file or absent.
+pub fn stale_temporaries(path: &Path) -> Vec<PathBuf> {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return Vec::new();
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!("{}.tmp.", name.to_string_lossy());
+    let ours = std::process::id().to_string();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .and_then(|n| n.strip_prefix(&prefix))
+                .is_some_and(|pid| {
+                    !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && pid != ours
+                })
+        })
+        .collect()
 }
