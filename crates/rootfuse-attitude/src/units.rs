@@ -747,6 +747,17 @@ impl UnitCheck {
         self.add(t * ft, gyr * fg, acc * fa, mag.map(|m| m * fm));
     }
 
+    /// The findings of a whole recording, already converted to the filters' units from the
+    /// `declared` ones (as [`Units::convert_recording`] or a reader with units leaves it).
+    pub fn of_recording(rec: &crate::Recording, declared: &Units) -> Vec<UnitFinding> {
+        let mut check = UnitCheck::new(declared);
+        for i in 0..rec.len() {
+            let mag = rec.mag.as_ref().map(|m| m[i]);
+            check.add_si(rec.t[i], rec.gyr[i], rec.acc[i], mag);
+        }
+        check.findings()
+    }
+
     /// Samples added (at most [`CHECK_SAMPLES`]).
     pub fn samples(&self) -> u64 {
         self.samples

@@ -73,9 +73,13 @@ impl InputChecks {
 
     /// What to say about device `d` of `what` (a file, or a file's device): its unit findings
     /// and, from its `rejections`, any sensor the filter could not use at all (`nine_d`: the
-    /// filter uses the magnetometer and the input has one).
+    /// filter uses the magnetometer and the input has one; otherwise the magnetometer's unit
+    /// does not matter and is not judged).
     pub fn judge(&self, what: &str, d: u32, rejections: RejectionTotals, nine_d: bool) -> Verdict {
-        let findings = self.findings(d);
+        let mut findings = self.findings(d);
+        if !nine_d {
+            findings.retain(|f| f.sensor != Sensor::Magnetometer);
+        }
         let mut verdict = Verdict::default();
         let hint = |sensor: Sensor| {
             findings

@@ -4,9 +4,10 @@
 use crate::arrays::{DofArg, SeedArg, Steps, matrix, same_length, vector};
 use crate::filter::{Inputs, imu_arrays, recording};
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyIOError, PyValueError};
+use pyo3::exceptions::{PyIOError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rootfuse_attitude::units::{UnitCheck, Units, UnitsError};
 use rootfuse_attitude::{Quat, Recording};
 use rootfuse_eval::metrics::{self, Alignment};
 
@@ -211,17 +212,56 @@ pub fn scenario_names() -> Vec<&'static str> {
 }
 
 /// Reads a recording CSV (`t,gx,gy,gz,ax,ay,az[,mx,my,mz][,qw,qx,qy,qz][,use]`, the
-/// broad_csv format) into a dict: `t` `(N,)` s, `gyr` `(N, 3)` rad/s, `acc` `(N, 3)` m/s²,
-/// `mag` `(N, 3)` or None, `truth` `(N, 4)` or None, `use` bool `(N,)` or None, `name`.
+/// broad_csv format; comma, semicolon or tab, decimal commas with semicolons, empty cells as
+/// missing values) into a dict: `t` `(N,)` s, `gyr` `(N, 3)` rad/s, `acc` `(N, 3)` m/s²,
+/// `mag` `(N, 3)` µT or None, `truth` `(N, 4)` or None, `use` bool `(N,)` or None, `name`.
+///
+/// `units` declares the file's units as `rootfuse run --units` does
+/// (`"time=ms,gyro=deg/s,acc=g,mag=nT"`, or a factor to SI: `"acc=0.000598"`); the readings
+/// are converted as read. The data are then checked against those units: a sensor whose
+/// readings look like another unit raises a `UserWarning` naming the likely unit and the
+/// `units=` entry that fixes it (an error with `strict=True`).
 /// A malformed file raises ValueError naming file, line and column; a missing one OSError.
 #[pyfunction]
-pub fn read_csv<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let rec = py
-        .detach(|| rootfuse_io::read_csv(&path))
+#[pyo3(signature = (path, *, units=None, strict=false))]
+pub fn read_csv<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+    units: Option<&str>,
+    strict: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let units: Units = match units {
+        Some(text) => text
+            .parse()
+            .map_err(|e: UnitsError| PyValueError::new_err(e.to_string()))?,
+        None => Units::default(),
+    };
+    let (rec, findings) = py
+        .detach(|| {
+            let rec = rootfuse_io::read_csv_in(&path, rootfuse_io::ImuGaps::Refuse, units)?;
+            let findings = UnitCheck::of_recording(&rec, &units);
+            Ok((rec, findings))
+        })
         .map_err(|e| match e {
             rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
             _ => PyValueError::new_err(e.to_string()),
         })?;
+    for f in &findings {
+        let advice = if f.dead {
+            format!("{}: {f}", path.display())
+        } else {
+            format!(
+                "{}: {f}: pass units=\"{}\"",
+                path.display(),
+                f.declaration()
+            )
+        };
+        if strict {
+            return Err(PyValueError::new_err(format!("{advice} (strict=True)")));
+        }
+        let message = std::ffi::CString::new(advice).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+    }
     recording_dict(py, rec)
 }
 

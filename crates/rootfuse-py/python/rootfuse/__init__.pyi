@@ -214,8 +214,9 @@ def simulate(scenario: str, *, seed: int = 0, duration_s: float = 10.0, rate_hz:
 
 def scenario_names() -> List[str]: ...
 
-def read_csv(path: Path) -> Dict[str, Any]:
-    """A recording CSV as a dict (t, gyr, acc, mag, truth, use, name)."""
+def read_csv(path: Path, *, units: Optional[str] = None, strict: bool = False) -> Dict[str, Any]:
+    """A recording CSV as a dict (t, gyr, acc, mag, truth, use, name), converted from `units`
+    ("time=ms,gyro=deg/s,acc=g,mag=nT"); readings that look like another unit warn."""
 
 def write_recording(
     path: Path,
