@@ -100,7 +100,10 @@ fn broad_rmse_is_pinned() {
     );
 }
 
-/// f32 gives the same accuracy as f64 (within 0.5° total RMSE, the EKF 6D being the loosest).
+/// f32 gives the accuracy of f64 on the four pinned trials, as the README says: total RMSE
+/// within 0.01° for every filter, 6D and 9D, except the EKF in 6D (within 0.4°; measured
+/// at most 0.003° elsewhere and 0.10° for the EKF 6D, on trial 16, where its gate
+/// decisions flip near the threshold).
 #[test]
 #[cfg_attr(
     not(broad_data),
@@ -108,19 +111,26 @@ fn broad_rmse_is_pinned() {
 )]
 fn broad_f32_matches_f64() {
     let Some(dir) = broad_dir() else { return };
-    let rec = read_csv(dir.join(format!("{}.csv", TRIALS[1]))).unwrap();
-    for &kind in FilterKind::ALL {
-        for dof in [6u8, 9] {
-            let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(crate::common::dof(dof)).unwrap();
-            let (a, b) = (rmse(&spec, &rec, dof, false), rmse(&spec, &rec, dof, true));
-            assert!(
-                (a.total - b.total).abs() < 0.5,
-                "{} {dof}D: f64 {} vs f32 {}",
-                kind.name(),
-                a.total,
-                b.total
-            );
+    for trial in TRIALS {
+        let rec = read_csv(dir.join(format!("{trial}.csv"))).unwrap();
+        for &kind in FilterKind::ALL {
+            for dof in [6u8, 9] {
+                let mut spec = FilterSpec::new(kind.name()).unwrap();
+                spec.set_dof(crate::common::dof(dof)).unwrap();
+                let (a, b) = (rmse(&spec, &rec, dof, false), rmse(&spec, &rec, dof, true));
+                let within = if kind.name() == "ekf" && dof == 6 {
+                    0.4
+                } else {
+                    0.01
+                };
+                assert!(
+                    (a.total - b.total).abs() < within,
+                    "{trial} {} {dof}D: f64 {} vs f32 {} (README: within {within}°)",
+                    kind.name(),
+                    a.total,
+                    b.total
+                );
+            }
         }
     }
 }
