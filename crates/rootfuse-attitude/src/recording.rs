@@ -37,6 +37,32 @@ impl Recording {
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
+    /// The samples in `range` (indices) as a recording of their own, with the same name:
+    /// a stretch to score or align on its own.
+    ///
+    /// # Panics
+    /// When `range` is not within `0..len()`, as slice indexing does.
+    ///
+    /// ```
+    /// # use rootfuse_attitude::{Recording, Vec3};
+    /// let still = vec![Vec3::new(0.0, 0.0, 0.0); 3];
+    /// let gravity = vec![Vec3::new(0.0, 0.0, 9.81); 3];
+    /// let rec = Recording { t: vec![0.0, 0.01, 0.02], gyr: still, acc: gravity, ..Recording::default() };
+    /// assert_eq!(rec.slice(1..3).t, [0.01, 0.02]);
+    /// assert_eq!(rec.slice(1..3).acc.len(), 2);
+    /// ```
+    pub fn slice(&self, range: core::ops::Range<usize>) -> Recording {
+        Recording {
+            name: self.name.clone(),
+            t: self.t[range.clone()].to_vec(),
+            gyr: self.gyr[range.clone()].to_vec(),
+            acc: self.acc[range.clone()].to_vec(),
+            mag: self.mag.as_ref().map(|v| v[range.clone()].to_vec()),
+            truth: self.truth.as_ref().map(|v| v[range.clone()].to_vec()),
+            use_mask: self.use_mask.as_ref().map(|v| v[range].to_vec()),
+        }
+    }
+
     /// Sample `i` (NaN magnetometer for a 6D recording).
     pub fn sample(&self, i: usize) -> ImuSample<f64> {
         match &self.mag {

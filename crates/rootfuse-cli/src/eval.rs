@@ -1,6 +1,6 @@
 //! `rootfuse eval`: the BROAD metrics of estimate files against ground truth.
 use clap::Args;
-use rootfuse_attitude::Quat;
+use rootfuse_attitude::{Quat, Recording};
 use rootfuse_eval::alignment::{FrameAlignment, align_recording};
 use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
 use rootfuse_io::{list_dir, read_csv, read_estimates};
@@ -27,12 +27,18 @@ pub struct EvalArgs {
     #[arg(long)]
     json: bool,
     /// The truth is in other frames (motion capture): first estimate the constant earth-frame
-    /// offset (about the vertical only with --dof 6, whose truth frame must have z up) and the
-    /// sensor-to-body rotation by robust least squares, print them, and score the aligned
-    /// estimate.
+    /// offset (about the vertical only with --dof 6) and the sensor-to-body rotation by robust
+    /// least squares, print them, and score the aligned estimate. The truth's vertical is
+    /// found from the data (z-up or y-up frames alike) and heading and inclination split
+    /// about it. A recording that does not turn about two axes is refused (it cannot tell
+    /// the two rotations apart).
     #[arg(long)]
     align: bool,
 }
+
+/// Fewer counted samples than this make a score that is noted as saying little (one second
+/// at 100 Hz).
+const MIN_SAMPLES: usize = 100;
 
 /// One scored file.
 struct Scored {
@@ -76,11 +82,28 @@ fn score(
         .then(|| align_recording(&rec, &est_data.quat, align))
         .transpose()
         .map_err(|e| format!("{}: --align: {e}", est.display()))?;
-    let quat = match &alignment {
-        Some(a) => a.apply_all(&est_data.quat),
-        None => est_data.quat,
+    let (rec, quat) = match &alignment {
+        // Estimate and truth turned z-up together, so that heading and inclination split
+        // about the truth's own vertical (a y-up motion-capture frame).
+        Some(a) => {
+            let level = a.level();
+            let truth = rec
+                .truth
+                .as_ref()
+                .map(|t| t.iter().map(|&r| level * r).collect());
+            let quat = est_data.quat.iter().map(|&q| level * a.apply(q)).collect();
+            (Recording { truth, ..rec }, quat)
+        }
+        None => (rec, est_data.quat),
     };
     let rmse = evaluate(&rec, &quat, align).map_err(|e| format!("{}: {e}", truth.display()))?;
+    if rmse.n_used < MIN_SAMPLES {
+        eprintln!(
+            "warning: {}: only {} sample(s) count (use = 1, finite truth): an RMSE over so few says little about accuracy",
+            truth.display(),
+            rmse.n_used
+        );
+    }
     Ok((rmse, alignment))
 }
 
@@ -173,14 +196,18 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         if args.align {
             out!("\naligned (estimate in the truth's frames = earth ⊗ q ⊗ sensor_to_body*):");
             out!(
-                "| file | earth offset (deg, about axis) | sensor to body (deg, about axis) | outliers | median error (deg) |"
+                "| file | truth vertical | earth offset (deg, about axis) | sensor to body (deg, about axis) | outliers | median error (deg) |"
             );
-            out!("|---|---|---|---|---|");
+            out!("|---|---|---|---|---|---|");
             for s in &rows {
                 if let Some(a) = &s.alignment {
+                    let v = a.vertical;
                     out!(
-                        "| {} | {} | {} | {} of {} | {:.3} |",
+                        "| {} | [{:.3}, {:.3}, {:.3}] | {} | {} | {} of {} | {:.3} |",
                         s.name,
+                        v.x,
+                        v.y,
+                        v.z,
                         axis_angle(a.earth),
                         axis_angle(a.sensor_to_body),
                         a.n_downweighted,
@@ -219,6 +246,8 @@ fn alignment_json(a: &FrameAlignment) -> serde_json::Value {
         "n_used": a.n_used,
         "n_downweighted": a.n_downweighted,
         "median_error": a.median_error_deg,
+        "vertical": a.vertical.to_array(),
+        "excitation": a.excitation_deg,
     })
 }
 

@@ -869,6 +869,94 @@ fn eval_align_never_hurts_on_broad() {
     }
 }
 
+/// `eval --align` on real data where it used to mislead: a y-up truth (BROAD 02 turned so
+/// that its y axis is up, as many motion-capture systems are) scores as the z-up truth, 6D
+/// and 9D; a still stretch (BROAD 27, rows 45319–46588: under 1° of rotation, which used to
+/// give a 147° earth offset) is refused with the rotation it has and the rotation it needs;
+/// five samples are scored with a warning.
+#[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
+fn eval_align_on_y_up_still_and_short_truths() {
+    use rootfuse_attitude::{Quat, Vec3};
+    let Some(broad) = broad_dir() else { return };
+    let dir = temp_dir("align-real");
+    let rec = read_csv(broad.join("02_undisturbed_slow_rotation_B.csv")).unwrap();
+    let z_up = dir.join("z.csv");
+    write_recording(&z_up, &rec).unwrap();
+    let y_up_turn = Quat::from_axis_angle(Vec3::new(1.0, 0.0, 0.0), -std::f64::consts::FRAC_PI_2);
+    let mut turned = rec.clone();
+    for q in turned.truth.as_mut().unwrap() {
+        *q = y_up_turn * *q;
+    }
+    let y_up = dir.join("y.csv");
+    write_recording(&y_up, &turned).unwrap();
+    for dof in ["9", "6"] {
+        let out = dir.join(format!("o{dof}"));
+        let (code, _, stderr) = run_paths(&[
+            &"run",
+            &z_up,
+            &"--filter",
+            &"flagship",
+            &"--dof",
+            &dof,
+            &"--out",
+            &out,
+        ]);
+        assert_eq!(code, Some(0), "{stderr}");
+        let est = out.join("z.csv");
+        let score = |truth: &Path| {
+            let (code, stdout, stderr) =
+                run_paths(&[&"eval", &truth, &est, &"--align", &"--dof", &dof, &"--json"]);
+            assert_eq!(code, Some(0), "{stderr}");
+            let json: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+            let vertical = json["files"][0]["align"]["vertical"].clone();
+            (json_totals(&stdout)[0].1, vertical)
+        };
+        let ((z, z_vertical), (y, y_vertical)) = (score(&z_up), score(&y_up));
+        assert!((z - y).abs() < 1e-6, "{dof}D: z-up {z}° vs y-up {y}°");
+        assert!(z < 1.0, "{dof}D: {z}°");
+        assert_eq!(z_vertical, serde_json::json!([0.0, 0.0, 1.0]));
+        assert_eq!(y_vertical, serde_json::json!([0.0, 1.0, 0.0]));
+    }
+
+    let rec = read_csv(broad.join("27_disturbed_phone_vibration_B.csv")).unwrap();
+    let still = dir.join("still.csv");
+    write_recording(&still, &rec.slice(45317..46587)).unwrap();
+    let out = dir.join("still-out");
+    let (code, _, stderr) = run_paths(&[&"run", &still, &"--filter", &"flagship", &"--out", &out]);
+    assert_eq!(code, Some(0), "{stderr}");
+    for dof in ["9", "6"] {
+        let (code, _, stderr) = run_paths(&[
+            &"eval",
+            &still,
+            &out.join("still.csv"),
+            &"--align",
+            &"--dof",
+            &dof,
+        ]);
+        assert_eq!(code, Some(2), "{stderr}");
+        assert!(
+            stderr.contains("does not rotate enough") && stderr.contains("at least 5° needed"),
+            "{stderr}"
+        );
+    }
+
+    let five = dir.join("five.csv");
+    write_recording(&five, &read_csv(&z_up).unwrap().slice(20000..20005)).unwrap();
+    let out = dir.join("five-out");
+    let (code, _, stderr) = run_paths(&[&"run", &five, &"--filter", &"flagship", &"--out", &out]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (code, _, stderr) = run_paths(&[&"eval", &five, &out.join("five.csv")]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("only 5 sample(s) count") && stderr.contains("says little about accuracy"),
+        "{stderr}"
+    );
+}
+
 /// `run --help` documents the 1 s gap limit and what a signal does (the limit appeared
 /// nowhere before).
 #[test]
