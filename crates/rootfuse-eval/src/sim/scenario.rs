@@ -77,6 +77,36 @@ pub const SCENARIOS: &[(&str, &str)] = &[
         "noise-free",
         "the slow-rotation motion measured by an ideal 9D IMU (no noise, bias or other error)",
     ),
+    (
+        "pendulum",
+        "10% rest, pendulum swings of 30-70° at 0.3-1 Hz in ~10 s pieces, the sensor at the bob (lever g/ω²: centripetal up to 1.5 g, tangential up to 1.2 g), 10% rest",
+    ),
+    ("pendulum-6d", "pendulum without a magnetometer"),
+    (
+        "pendulum-disturbed",
+        "pendulum with the magnetic disturbances of magnetic-disturbance",
+    ),
+    (
+        "vehicle",
+        "10% rest, ~8 s pieces alternating turns about the vertical at 0.1-0.4 rad/s with a sustained centripetal acceleration of 1-4 m/s² and straight acceleration or braking at 1-3 m/s², 10% rest",
+    ),
+    ("vehicle-6d", "vehicle without a magnetometer"),
+    (
+        "vehicle-disturbed",
+        "vehicle with the magnetic disturbances of magnetic-disturbance",
+    ),
+    (
+        "handheld-translation",
+        "10% rest, back-and-forth motion along a random line at 3-8 m/s², 0.5-2 Hz, with slow rotation (~0.3 rad/s), 10% rest",
+    ),
+    (
+        "handheld-translation-6d",
+        "handheld-translation without a magnetometer",
+    ),
+    (
+        "handheld-translation-disturbed",
+        "handheld-translation with the magnetic disturbances of magnetic-disturbance",
+    ),
 ];
 
 /// The preset names, in the order of [`SCENARIOS`].
@@ -186,8 +216,74 @@ pub fn scenario_simulation(
         )
     };
 
-    let segments = match name {
+    // The hard cases' variants: without a magnetometer, or with a disturbed field.
+    let (base, variant) = match name.rsplit_once('-') {
+        Some((base, v @ ("6d" | "disturbed")))
+            if matches!(base, "pendulum" | "vehicle" | "handheld-translation") =>
+        {
+            (base, v)
+        }
+        _ => (name, ""),
+    };
+    let up = q0.rotate_inverse(Vec3::new(0.0, 0.0, 1.0));
+    let segments = match base {
         "static" => vec![Segment::rest(d)],
+        "pendulum" => {
+            let motion = pieces_of(r, 0.8 * d, 10.0, |r, t| {
+                let freq = uniform(r, 0.3, 1.0);
+                let amplitude = uniform(r, 30.0, 70.0).to_radians();
+                let heading = uniform(r, 0.0, 2.0 * PI);
+                let axis = q0.rotate_inverse(Vec3::new(heading.cos(), heading.sin(), 0.0));
+                // The length of a simple pendulum of that frequency, hanging below the pivot.
+                let length = GRAVITY / (2.0 * PI * freq).powi(2);
+                Segment::swing(t, axis, amplitude, freq, up * -length)
+            });
+            framed(d, 0.1, 0.1, motion)
+        }
+        "vehicle" => {
+            // Forward and left are fixed in the vehicle, so in the sensor frame.
+            let forward = q0.rotate_inverse(Vec3::new(1.0, 0.0, 0.0));
+            let left = up.cross(forward);
+            let constant = |v: Vec3<f64>| Oscillation {
+                amplitude: v,
+                freq_hz: 0.0,
+                phase: Vec3::new(0.5 * PI, 0.5 * PI, 0.5 * PI),
+            };
+            let mut k = 0usize;
+            let motion = pieces_of(r, 0.8 * d, 8.0, |r, t| {
+                k += 1;
+                let (rotation, acc) = if k % 2 == 1 {
+                    // A car's lateral acceleration of 1-4 m/s² (speed = that / rate).
+                    let rate = uniform(r, 0.1, 0.4) * sign(r);
+                    let speed = uniform(r, 1.0, 4.0) / rate.abs();
+                    let mut turn = Segment::rotate(t, up, rate);
+                    if let super::Rotation::ConstantRate { ramp_s, .. } = &mut turn.rotation {
+                        *ramp_s = 0.1;
+                    }
+                    // Toward the centre of the turn: left for a positive (counter-clockwise)
+                    // rate.
+                    (turn, left * (speed * rate))
+                } else {
+                    (Segment::rest(t), forward * (uniform(r, 1.0, 3.0) * sign(r)))
+                };
+                rotation.with_vibration(Vibration {
+                    angle: Vec::new(),
+                    acc: vec![constant(acc)],
+                })
+            });
+            framed(d, 0.1, 0.1, motion)
+        }
+        "handheld-translation" => {
+            let motion = pieces(r, 0.8 * d, |r, t| {
+                let seg = smooth(r, t, 0.3, 0.1, 0.3);
+                seg.with_translation(Oscillation {
+                    amplitude: random_unit(r) * uniform(r, 3.0, 8.0),
+                    freq_hz: uniform(r, 0.5, 2.0),
+                    phase: Vec3::zero(),
+                })
+            });
+            framed(d, 0.1, 0.1, motion)
+        }
         "slow-rotation" | "noise-free" => slow(r),
         "fast-rotation" => {
             let mut k = 0usize;
@@ -222,25 +318,7 @@ pub fn scenario_simulation(
         }
         "magnetic-disturbance" => {
             let segs = slow(r);
-            let ramp = (0.02 * d).min(1.0);
-            if let Some(m) = &mut sensor.mag {
-                m.disturbances = vec![
-                    MagDisturbance {
-                        start_s: 0.30 * d,
-                        end_s: 0.55 * d,
-                        field: random_unit(r) * 30.0,
-                        frame: Frame::Earth,
-                        ramp_s: ramp,
-                    },
-                    MagDisturbance {
-                        start_s: 0.65 * d,
-                        end_s: 0.80 * d,
-                        field: random_unit(r) * 20.0,
-                        frame: Frame::Sensor,
-                        ramp_s: ramp,
-                    },
-                ];
-            }
+            disturb(r, &mut sensor, d);
             segs
         }
         "bias-step" => {
@@ -303,6 +381,11 @@ pub fn scenario_simulation(
     };
     if name == "noise-free" {
         sensor = SensorModel::ideal();
+    }
+    match variant {
+        "6d" => sensor.mag = None,
+        "disturbed" => disturb(r, &mut sensor, d),
+        _ => {}
     }
     Ok(Simulation {
         name: name.to_string(),
@@ -370,10 +453,45 @@ fn framed(d: f64, lead: f64, tail: f64, motion: Vec<Segment>) -> Vec<Segment> {
 fn pieces(
     r: &mut ChaCha8Rng,
     span: f64,
+    make: impl FnMut(&mut ChaCha8Rng, f64) -> Segment,
+) -> Vec<Segment> {
+    pieces_of(r, span, 5.0, make)
+}
+
+/// Fills `span` seconds with pieces of about `length` seconds (equal length, at least one).
+fn pieces_of(
+    r: &mut ChaCha8Rng,
+    span: f64,
+    length: f64,
     mut make: impl FnMut(&mut ChaCha8Rng, f64) -> Segment,
 ) -> Vec<Segment> {
-    let n = ((span / 5.0).round() as usize).clamp(1, 100_000);
+    let n = ((span / length).round() as usize).clamp(1, 100_000);
     (0..n).map(|_| make(r, span / n as f64)).collect()
+}
+
+/// The field disturbances of `magnetic-disturbance`: a 30 µT room-fixed one from 30 % to
+/// 55 % of the duration `d`, a 20 µT body-fixed one from 65 % to 80 %.
+fn disturb(r: &mut ChaCha8Rng, sensor: &mut SensorModel, d: f64) {
+    let ramp = (0.02 * d).min(1.0);
+    let (earth, body) = (random_unit(r) * 30.0, random_unit(r) * 20.0);
+    if let Some(m) = &mut sensor.mag {
+        m.disturbances = vec![
+            MagDisturbance {
+                start_s: 0.30 * d,
+                end_s: 0.55 * d,
+                field: earth,
+                frame: Frame::Earth,
+                ramp_s: ramp,
+            },
+            MagDisturbance {
+                start_s: 0.65 * d,
+                end_s: 0.80 * d,
+                field: body,
+                frame: Frame::Sensor,
+                ramp_s: ramp,
+            },
+        ];
+    }
 }
 
 /// A smooth random rotation with body rate up to about `peak_rate` rad/s, wobble frequencies

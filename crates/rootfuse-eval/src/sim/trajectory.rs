@@ -8,7 +8,11 @@
 //!   body rate is `ω = J_r(r)·ṙ` with the right Jacobian of SO(3)
 //!   `J_r(r) = I − (1 − cos θ)/θ²·[r]× + (θ − sin θ)/θ³·[r]×²`, `θ = |r|`;
 //! - vibration: a small windowed wobble `exp(v(τ)/2)` applied on the right of the main motion;
-//!   for `q = A ⊗ B` the body rate is `B* ⊗ ω_A ⊗ B + ω_B`.
+//!   for `q = A ⊗ B` the body rate is `B* ⊗ ω_A ⊗ B + ω_B`;
+//! - pendulum swing about a fixed axis through a pivot off the sensor:
+//!   `Δ(τ) = exp(u·θ(τ)/2)`, `ω = u·θ'`, and the sensor, at `p = Δ·lever` from the pivot,
+//!   accelerates at `θ''·u × p + θ'²·u × (u × p)` (tangential and centripetal), all in closed
+//!   form.
 //!
 //! The true orientation at time `t` is `q_start(segment) ⊗ Δ(τ) ⊗ exp(v(τ)/2)`, sensor to earth
 //! (ENU), `τ` the time since the segment began; each segment starts where the previous one
@@ -127,6 +131,22 @@ pub enum Rotation {
         /// Wobble of the rotation vector, rad.
         wobble: Vec<Oscillation>,
     },
+    /// A pendulum swing: rotation about the fixed sensor-frame `axis` through a pivot, by the
+    /// angle `θ(τ) = amplitude·e(τ)·sin(2π·freq_hz·τ)`, `e` a smoothstep envelope rising over
+    /// the first and falling over the last `min(2 s, T/4)`: the swing starts and ends at rest
+    /// at the segment's start orientation. The sensor sits at `lever` (m, sensor frame at the
+    /// segment start) from the pivot and feels the swing's tangential and centripetal
+    /// acceleration.
+    Swing {
+        /// Swing axis, sensor frame (any non-zero length).
+        axis: Vec3<f64>,
+        /// Peak swing angle, rad.
+        amplitude: f64,
+        /// Swing frequency, Hz (≥ 0).
+        freq_hz: f64,
+        /// From the pivot to the sensor, m, sensor frame at the segment start.
+        lever: Vec3<f64>,
+    },
 }
 
 /// Mechanical vibration of the sensor: a small orientation wobble and a sensor-frame
@@ -181,6 +201,24 @@ impl Segment {
             ..Self::rest(duration)
         }
     }
+    /// A pendulum swing (see [`Rotation::Swing`]).
+    pub fn swing(
+        duration: f64,
+        axis: Vec3<f64>,
+        amplitude: f64,
+        freq_hz: f64,
+        lever: Vec3<f64>,
+    ) -> Self {
+        Self {
+            rotation: Rotation::Swing {
+                axis,
+                amplitude,
+                freq_hz,
+                lever,
+            },
+            ..Self::rest(duration)
+        }
+    }
     /// This segment with an added earth-frame linear acceleration.
     pub fn with_translation(mut self, acc: Oscillation) -> Self {
         self.translation.push(acc);
@@ -210,6 +248,25 @@ impl Segment {
             Rotation::Smooth { end, wobble } => {
                 if !finite3(*end) || !wobble.iter().all(Oscillation::is_valid) {
                     return Err(bad("smooth rotation values must be finite"));
+                }
+            }
+            Rotation::Swing {
+                axis,
+                amplitude,
+                freq_hz,
+                lever,
+            } => {
+                if !(finite3(*axis) && axis.norm() > 0.0) {
+                    return Err(bad("swing axis must be finite and non-zero"));
+                }
+                if !(amplitude.is_finite()
+                    && freq_hz.is_finite()
+                    && *freq_hz >= 0.0
+                    && finite3(*lever))
+                {
+                    return Err(bad(
+                        "swing amplitude and lever must be finite, frequency >= 0",
+                    ));
                 }
             }
         }
@@ -259,7 +316,45 @@ impl Segment {
                 let dr = *end * dc + g * dw + dg * w;
                 (Quat::from_rotation_vector(r), right_jacobian_times(r, dr))
             }
+            Rotation::Swing { axis, .. } => {
+                let u = *axis * (1.0 / axis.norm());
+                let (angle, rate, _) = self.swing_angle(tau);
+                (Quat::from_axis_angle(u, angle), u * rate)
+            }
         }
+    }
+
+    /// Swing angle θ (rad) and its first two time derivatives at `tau`; zeros for other
+    /// rotations.
+    fn swing_angle(&self, tau: f64) -> (f64, f64, f64) {
+        let Rotation::Swing {
+            amplitude, freq_hz, ..
+        } = &self.rotation
+        else {
+            return (0.0, 0.0, 0.0);
+        };
+        let big_t = self.duration;
+        let edge = (2.0_f64).min(0.25 * big_t);
+        let step = |x: f64| {
+            if x <= 0.0 || x >= 1.0 {
+                (x.clamp(0.0, 1.0).round(), 0.0, 0.0)
+            } else {
+                (x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x), 6.0 - 12.0 * x)
+            }
+        };
+        let (a, da, dda) = step(tau / edge);
+        let (b, db, ddb) = step((big_t - tau) / edge);
+        // e = a(τ/E)·b((T−τ)/E): each factor's derivative carries ±1/E.
+        let e = a * b;
+        let de = (da * b - a * db) / edge;
+        let dde = (dda * b - 2.0 * da * db + a * ddb) / (edge * edge);
+        let w = 2.0 * PI * freq_hz;
+        let (sn, cs) = (w * tau).sin_cos();
+        (
+            amplitude * e * sn,
+            amplitude * (de * sn + e * w * cs),
+            amplitude * (dde * sn + 2.0 * de * w * cs - e * w * w * sn),
+        )
     }
 
     /// Edge envelope (0 at both ends, 1 inside) and its derivative.
@@ -279,6 +374,14 @@ impl Segment {
         let mut acc_sensor = Vec3::zero();
         if !comp.translation.is_empty() {
             acc_earth = eval_sum(&comp.translation, tau).0 * env;
+        }
+        if let Rotation::Swing { axis, lever, .. } = &self.rotation {
+            // The sensor at p = Δ·lever from the pivot (start-frame coordinates).
+            let u = *axis * (1.0 / axis.norm());
+            let (_, rate, accel) = self.swing_angle(tau);
+            let p = delta.rotate(*lever);
+            let up = u.cross(p);
+            acc_earth += start.rotate(up * accel + u.cross(up) * (rate * rate));
         }
         if !comp.vib_angle.is_empty() {
             let (g, dg) = eval_sum(&comp.vib_angle, tau);
