@@ -2,7 +2,9 @@
 use clap::Args;
 use rootfuse_attitude::{Quat, Recording};
 use rootfuse_eval::alignment::{FrameAlignment, align_recording};
+use rootfuse_eval::consistency::{Consistency, UpperTriangle, consistency};
 use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_io::Estimates;
 use rootfuse_io::{list_dir, read_csv, read_estimates};
 use std::path::{Path, PathBuf};
 
@@ -34,7 +36,25 @@ pub struct EvalArgs {
     /// the two rotations apart).
     #[arg(long)]
     align: bool,
+    /// Also judge the reported attitude covariance (estimate files written by `rootfuse run
+    /// --covariance`): per file the mean NEES/k and the share of samples inside the 95 %
+    /// ellipsoid, total and inclination, after the first 10 % of each file (1 and 95 % when
+    /// honest; `rootfuse_eval::consistency`).
+    #[arg(long, conflicts_with = "align")]
+    consistency: bool,
+    /// With --consistency: a floor for the truth's own error, degrees per axis, added to the
+    /// covariance (optical truth is itself off by a fraction of a degree).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        requires = "consistency"
+    )]
+    floor: f64,
 }
+
+/// The leading share of each file --consistency leaves out (the filter's start-up).
+const CONSISTENCY_SKIP: f64 = 0.1;
 
 /// Fewer counted samples than this make a score that is noted as saying little (one second
 /// at 100 Hz).
@@ -45,16 +65,33 @@ struct Scored {
     name: String,
     rmse: Rmse,
     alignment: Option<FrameAlignment>,
+    consistency: Option<Consistency>,
+}
+
+/// The covariance columns of an estimate file, per row, or an error saying how to get them.
+fn covariances(est: &Path, data: &Estimates) -> Result<Vec<UpperTriangle>, String> {
+    const NAMES: [&str; 6] = ["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"];
+    let columns: Vec<&[f64]> = NAMES
+        .iter()
+        .map(|name| {
+            data.column(name).ok_or_else(|| {
+                format!(
+                    "{}: --consistency needs the covariance columns {} (column `{name}` is missing): write them with `rootfuse run --covariance`",
+                    est.display(),
+                    NAMES.join(",")
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((0..data.t.len())
+        .map(|i| core::array::from_fn(|k| columns[k][i]))
+        .collect())
 }
 
 /// Scores one estimate file against one truth file, aligning the frames first with
 /// `frames`.
-fn score(
-    truth: &Path,
-    est: &Path,
-    align: Alignment,
-    frames: bool,
-) -> Result<(Rmse, Option<FrameAlignment>), String> {
+fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<Scored, String> {
+    let frames = args.align;
     let rec = read_csv(truth).map_err(|e| e.to_string())?;
     let est_data = read_estimates(est).map_err(|e| e.to_string())?;
     if est_data.t.len() != rec.len() {
@@ -78,6 +115,26 @@ fn score(
             truth.display()
         ));
     }
+    let consistency = args
+        .consistency
+        .then(|| -> Result<Consistency, String> {
+            let cov = covariances(est, &est_data)?;
+            let truth_q = rec
+                .truth
+                .as_deref()
+                .ok_or("the truth file has no qw,qx,qy,qz")?;
+            consistency(
+                &est_data.quat,
+                &cov,
+                truth_q,
+                rec.use_mask.as_deref(),
+                align,
+                args.floor.to_radians(),
+                CONSISTENCY_SKIP,
+            )
+            .map_err(|e| format!("{}: {e}", truth.display()))
+        })
+        .transpose()?;
     let alignment = frames
         .then(|| align_recording(&rec, &est_data.quat, align))
         .transpose()
@@ -104,7 +161,12 @@ fn score(
             rmse.n_used
         );
     }
-    Ok((rmse, alignment))
+    Ok(Scored {
+        name: stem(est),
+        rmse,
+        alignment,
+        consistency,
+    })
 }
 
 /// Runs the command.
@@ -141,11 +203,9 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     }
     let mut rows = Vec::new();
     for (name, t, e) in &pairs {
-        let (rmse, alignment) = score(t, e, align, args.align)?;
         rows.push(Scored {
             name: name.clone(),
-            rmse,
-            alignment,
+            ..score(t, e, align, args)?
         });
     }
     let n = rows.len() as f64;
@@ -168,6 +228,16 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
                 });
                 if let Some(a) = &s.alignment {
                     file["align"] = alignment_json(a);
+                }
+                if let Some(c) = &s.consistency {
+                    file["consistency"] = serde_json::json!({
+                        "nees_total": c.nees_total,
+                        "coverage_total": c.coverage_total,
+                        "nees_inclination": c.nees_inclination,
+                        "coverage_inclination": c.coverage_inclination,
+                        "n_used": c.n_used,
+                        "n_invalid": c.n_invalid,
+                    });
                 }
                 file
             })
@@ -192,6 +262,27 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         }
         if rows.len() > 1 {
             out!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
+        }
+        if args.consistency {
+            out!(
+                "\ncovariance (after the first {:.0} % of each file, floor {}°): 1 and 95 % when honest",
+                CONSISTENCY_SKIP * 100.0,
+                args.floor
+            );
+            out!("| file | NEES/3 | inside 95 % | inclination NEES/2 | inside 95 % |");
+            out!("|---|---|---|---|---|");
+            for s in &rows {
+                if let Some(c) = &s.consistency {
+                    out!(
+                        "| {} | {:.2} | {:.1} % | {:.2} | {:.1} % |",
+                        s.name,
+                        c.nees_total,
+                        100.0 * c.coverage_total,
+                        c.nees_inclination,
+                        100.0 * c.coverage_inclination
+                    );
+                }
+            }
         }
         if args.align {
             out!("\naligned (estimate in the truth's frames = earth ⊗ q ⊗ sensor_to_body*):");

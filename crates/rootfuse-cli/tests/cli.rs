@@ -819,6 +819,60 @@ fn eval_align_scores_truth_in_other_frames() {
     );
 }
 
+/// `eval --consistency` judges the covariance `run --covariance` wrote: NEES/k and coverage
+/// per file in the table and the JSON, a floor that can only raise coverage, and a one-line
+/// refusal of an estimate file without covariance columns.
+#[test]
+fn eval_consistency_reads_the_covariance_columns() {
+    let dir = temp_dir("consistency");
+    let input = simulated(&dir, "c.csv", 2);
+    let (with, without) = (dir.join("with"), dir.join("without"));
+    for (out, extra) in [(&with, Some("--covariance")), (&without, None)] {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> =
+            vec![&"run", &input, &"--filter", &"flagship", &"--out", out];
+        if let Some(e) = &extra {
+            args.push(e);
+        }
+        let (code, _, stderr) = run_paths(&args);
+        assert_eq!(code, Some(0), "{stderr}");
+    }
+    let coverage = |floor: &str| {
+        let (code, stdout, stderr) = run_paths(&[
+            &"eval",
+            &input,
+            &with.join("c.csv"),
+            &"--consistency",
+            &"--floor",
+            &floor,
+            &"--json",
+        ]);
+        assert_eq!(code, Some(0), "{stderr}");
+        let json: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        let c = &json["files"][0]["consistency"];
+        assert!(c["nees_total"].as_f64().unwrap() > 0.0, "{stdout}");
+        assert!(c["n_used"].as_u64().unwrap() > 0, "{stdout}");
+        c["coverage_total"].as_f64().unwrap()
+    };
+    let (bare, floored) = (coverage("0"), coverage("5"));
+    assert!(
+        (0.0..=1.0).contains(&bare) && floored >= bare,
+        "{bare} {floored}"
+    );
+    let (code, stdout, _) = run_paths(&[&"eval", &input, &with.join("c.csv"), &"--consistency"]);
+    assert_eq!(code, Some(0));
+    assert!(
+        stdout.contains("NEES/3") && stdout.contains("inside 95 %"),
+        "{stdout}"
+    );
+    let (code, _, stderr) = run_paths(&[&"eval", &input, &without.join("c.csv"), &"--consistency"]);
+    assert_eq!(code, Some(2));
+    assert!(
+        stderr.contains("needs the covariance columns")
+            && stderr.contains("rootfuse run --covariance"),
+        "{stderr}"
+    );
+}
+
 /// On BROAD (pre-aligned), aligning never makes a good estimate look worse: per trial, the
 /// total RMSE after `--align` is at most the one without, 9D and 6D.
 #[test]

@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod alignment;
+pub mod consistency;
 pub mod metrics;
 pub mod sim;
 mod spectrum;

@@ -94,6 +94,14 @@ pub enum MetricsError {
     /// The recording has no ground truth.
     #[error("the recording has no ground truth")]
     NoTruth,
+    /// Estimates and their covariances differ in length.
+    #[error("length mismatch: {estimates} estimates, {covariances} covariances")]
+    CovarianceLength {
+        /// Number of estimates.
+        estimates: usize,
+        /// Number of covariances.
+        covariances: usize,
+    },
     /// No sample has `use = 1` and finite truth.
     #[error("no sample counts for evaluation (use = 1 with finite truth)")]
     NoUsableSamples,
