@@ -1,6 +1,44 @@
 //! Quaternions, conventions, building blocks and orientation filters over [`Lane`]: the
 //! numeric core that an embedded user links.
 //!
+//! # Using rootfuse-attitude
+//!
+//! ```toml
+//! [dependencies]
+//! # no_std and allocation-free without default features (every filter, no registry):
+//! rootfuse-attitude = { version = "0.1", default-features = false }
+//! ```
+//!
+//! The flagship filter ([`SqrtEskf`], registry name `flagship`): one sample at a time, gyroscope
+//! in rad/s, accelerometer in m/s² (any unit works: it uses the direction), magnetometer in
+//! any unit, all in the sensor frame; `dt` in seconds since the previous sample.
+//!
+//! ```
+//! use rootfuse_attitude::prelude::*;
+//!
+//! let mut filter = SqrtEskf::<f32>::try_new(&SqrtEskfParams::default()).expect("valid defaults");
+//! for _ in 0..500 {
+//!     // At rest, level, facing north: gravity up, the field north and down.
+//!     let sample = ImuSample::new(
+//!         Vec3::new(0.0, 0.0, 0.0),      // gyroscope, rad/s
+//!         Vec3::new(0.0, 0.0, 9.81),     // accelerometer, m/s²
+//!         Vec3::new(0.0, 20.0, -45.0),   // magnetometer, µT
+//!     );
+//!     filter.update(&sample, 0.01);
+//! }
+//! let q: Quat<f32> = filter.quat(); // sensor to earth (ENU), [w, x, y, z]
+//! let bias: Vec3<f32> = filter.bias(); // gyroscope bias, rad/s
+//! let p = filter.attitude_covariance(); // rad², earth axes: [2][2] is the heading variance
+//! assert!(q.angle_to(Quat::identity()) < 0.01);
+//! assert!(bias.norm() < 1e-3 && p.m[0][0] > 0.0);
+//! ```
+//!
+//! `SqrtEskf::<wide::f32x8>` runs eight independent channels in one register with the same
+//! bits per lane; `rootfuse-batch` feeds thousands of channels that way. 6D data (no
+//! magnetometer): [`ImuSample::six_d`] and `SqrtEskfParams { dof: Dof::Six, ..Default::default() }`.
+//! The other filters are in [`filters`], each with its parameters struct; the [`prelude`]
+//! imports the flagship, the trait and the types.
+//!
 //! Depends on `rootfuse-lane` (the [`Lane`] trait, small matrices), `rootfuse-lsq` (the
 //! recursive least-squares forms behind `lsq-fusion`, `no_std`) and `libm`. Without default
 //! features it is `no_std` and allocation-free: quaternions, vectors, frames, building blocks,
@@ -48,7 +86,19 @@ pub mod smooth;
 pub mod units;
 pub mod vec3;
 
+/// The flagship, the filter trait and the types a filter loop needs:
+/// `use rootfuse_attitude::prelude::*;`.
+pub mod prelude {
+    pub use crate::filters::{
+        Dof, Madgwick, MadgwickParams, Mahony, MahonyParams, OrientationFilter, SqrtEskf,
+        SqrtEskfParams,
+    };
+    pub use crate::{ImuSample, Quat, Vec3};
+    pub use rootfuse_lane::Lane;
+}
+
 pub use calibration::SensorCalibration;
+pub use filters::{SqrtEskf, SqrtEskfParams};
 pub use filters::{Dof, OrientationFilter};
 pub use quat::Quat;
 #[cfg(feature = "std")]
