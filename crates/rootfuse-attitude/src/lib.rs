@@ -98,8 +98,8 @@ pub mod prelude {
 }
 
 pub use calibration::SensorCalibration;
-pub use filters::{SqrtEskf, SqrtEskfParams};
 pub use filters::{Dof, OrientationFilter};
+pub use filters::{SqrtEskf, SqrtEskfParams};
 pub use quat::Quat;
 #[cfg(feature = "std")]
 pub use recording::Recording;
