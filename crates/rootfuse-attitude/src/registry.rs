@@ -33,6 +33,22 @@ pub enum RegistryError {
     },
     /// A parameter override was rejected.
     Param(ParamError),
+    /// `dof` was given to a filter without a 6D/9D choice (`gyro`: it never reads the
+    /// magnetometer), where it would otherwise be ignored.
+    NoDof {
+        /// The filter's name.
+        filter: &'static str,
+        /// The filters that have a `dof` parameter.
+        with_dof: std::vec::Vec<&'static str>,
+    },
+    /// An override given to [`FilterSpec::set_all`] was refused: how it was given (the
+    /// option or column a user wrote) and why.
+    Given {
+        /// How the override was given ([`Assignment::source`]).
+        source: String,
+        /// Why it was refused.
+        error: std::boxed::Box<RegistryError>,
+    },
 }
 
 impl fmt::Display for RegistryError {
@@ -42,6 +58,12 @@ impl fmt::Display for RegistryError {
                 write!(f, "unknown filter `{name}` (valid: {})", valid.join(", "))
             }
             Self::Param(e) => e.fmt(f),
+            Self::NoDof { filter, with_dof } => write!(
+                f,
+                "filter `{filter}` has no 6D/9D choice (no `dof` parameter); leave dof out, or choose a filter that has one: {}",
+                with_dof.join(", ")
+            ),
+            Self::Given { source, error } => write!(f, "{source}: {error}"),
         }
     }
 }
@@ -297,6 +319,55 @@ registry! {
     HeadingPipeline => "heading-pipeline", HeadingPipeline, HeadingPipelineParams, "Patent method, MEMS heading: smoothed accelerometer inclination, 2-state heading/bias Kalman filter, 0.96 circular blend, declination.";
 }
 
+/// One `key=value` override with the words that gave it, for [`FilterSpec::set_all`]: an
+/// error about it quotes [`source`](Self::source), so that a user reads the option or the
+/// column they wrote rather than a reconstructed assignment.
+///
+/// ```
+/// use rootfuse_attitude::registry::{Assignment, FilterSpec};
+///
+/// let mut spec = FilterSpec::new("mahony").unwrap();
+/// let err = spec
+///     .set_all(&[
+///         Assignment::from_source("max_dt=2", "--max-dt 2"),
+///         Assignment::from_source("max_dt=3", "--param max_dt=3"),
+///     ])
+///     .unwrap_err();
+/// assert_eq!(
+///     err.to_string(),
+///     "`max_dt` is given twice: by --max-dt 2 and by --param max_dt=3; give it once"
+/// );
+/// ```
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Assignment {
+    /// `key=value`, as [`FilterSpec::set`] takes it.
+    pub text: String,
+    /// How it was given (`--param kp=1`, `--dof 6`, `column kp`): named in errors.
+    pub source: String,
+}
+
+impl Assignment {
+    /// An override whose errors name it by its own text.
+    pub fn new(text: impl Into<String>) -> Self {
+        let text = text.into();
+        Self {
+            source: text.clone(),
+            text,
+        }
+    }
+    /// An override whose errors name it by `source`, the option or column that gave it.
+    pub fn from_source(text: impl Into<String>, source: impl Into<String>) -> Self {
+        Self {
+            text: text.into(),
+            source: source.into(),
+        }
+    }
+    /// The parameter name, or `None` when the text is not of the form `key=value`.
+    fn key(&self) -> Option<&str> {
+        self.text.split_once('=').map(|(k, _)| k.trim())
+    }
+}
+
 /// A filter choice with its parameter values: build it for any lane type.
 ///
 /// Made by name with `key=value` overrides ([`new`](Self::new), [`set`](Self::set)), or from
@@ -333,12 +404,52 @@ impl FilterSpec {
     pub fn kind(&self) -> FilterKind {
         self.kind
     }
-    /// Applies a `key=value` override (validated).
+    /// Applies a `key=value` override (validated). `dof` for a filter without one (`gyro`)
+    /// is [`RegistryError::NoDof`]: asking for 6D or 9D there is a mistake worth hearing of.
     pub fn set(&mut self, assignment: &str) -> Result<(), RegistryError> {
+        if Assignment::new(assignment).key() == Some("dof") && self.dof().is_none() {
+            return Err(RegistryError::NoDof {
+                filter: self.kind.name(),
+                with_dof: FilterKind::ALL
+                    .iter()
+                    .filter(|k| k.params().iter().any(|p| p.name == "dof"))
+                    .map(|k| k.name())
+                    .collect(),
+            });
+        }
         Ok(self.params.apply(assignment)?)
     }
-    /// Selects 6D (no magnetometer) or 9D operation, for filters that have a `dof` parameter
-    /// (`gyro` has none: it never reads the magnetometer, and is left as it is).
+    /// Applies several overrides, each parameter at most once: a parameter given twice (even
+    /// with the same value) is [`ParamError::Repeated`] naming both sources, so that neither
+    /// silently wins. Any other refusal is [`RegistryError::Given`], naming the source. All
+    /// or nothing: after an error the spec is as it was.
+    pub fn set_all(&mut self, assignments: &[Assignment]) -> Result<(), RegistryError> {
+        let mut next = self.clone();
+        let mut seen: std::vec::Vec<(&str, &str)> = std::vec::Vec::new();
+        for a in assignments {
+            if let Some(key) = a.key() {
+                if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+                    return Err(ParamError::Repeated {
+                        name: key.to_string(),
+                        first: first.to_string(),
+                        second: a.source.clone(),
+                    }
+                    .into());
+                }
+                seen.push((key, &a.source));
+            }
+            next.set(&a.text).map_err(|e| RegistryError::Given {
+                source: a.source.clone(),
+                error: std::boxed::Box::new(e),
+            })?;
+        }
+        *self = next;
+        Ok(())
+    }
+    /// Selects 6D (no magnetometer) or 9D operation for filters that have a `dof` parameter
+    /// and leaves `gyro` (none: it never reads the magnetometer) as it is: for code that
+    /// runs every filter in 6D and 9D. A user's choice goes through [`set`](Self::set) or
+    /// [`set_all`](Self::set_all) (`dof=6`), which refuse it for `gyro`.
     pub fn set_dof(&mut self, dof: Dof) -> Result<(), RegistryError> {
         if self.params.get("dof").is_some() {
             self.params.set("dof", dof.to_f64())?;

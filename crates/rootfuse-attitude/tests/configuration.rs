@@ -1,7 +1,7 @@
 //! Typed filter configuration: parameter kinds, 6D/9D, screening limits as parameters, state
 //! control (set quaternion, bias, heading) and per-sample flags, for every registered filter.
 use rootfuse_attitude::filters::{ParamError, ParamKind, SampleFlags};
-use rootfuse_attitude::registry::{FilterKind, FilterSpec, RegistryError};
+use rootfuse_attitude::registry::{Assignment, FilterKind, FilterSpec, RegistryError};
 use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Quat, Vec3};
 
 fn level_sample() -> ImuSample<f64> {
@@ -85,6 +85,95 @@ fn fractions_and_wrong_kinds_are_refused() {
     assert_eq!(kind_of("ecf-ekf", "window"), ParamKind::Integer);
     assert_eq!(kind_of("gyro", "init_from_acc"), ParamKind::Switch);
     assert_eq!(kind_of("mahony", "kp"), ParamKind::Real);
+}
+
+/// `set_all` takes each parameter once: a second value (different or the same) is refused
+/// naming both sources, and the spec is left as it was; any other refusal names its source.
+#[test]
+fn set_all_refuses_a_parameter_given_twice() {
+    let mut spec = FilterSpec::new("mahony").unwrap();
+    let before = spec.clone();
+    for (second, value) in [("--param max_dt=3", "3"), ("--param max_dt=2", "2")] {
+        let err = spec
+            .set_all(&[
+                Assignment::from_source("kp=0.7", "--param kp=0.7"),
+                Assignment::from_source("max_dt=2", "--max-dt 2"),
+                Assignment::from_source(format!("max_dt={value}"), second),
+            ])
+            .unwrap_err();
+        assert_eq!(
+            err,
+            RegistryError::Param(ParamError::Repeated {
+                name: "max_dt".into(),
+                first: "--max-dt 2".into(),
+                second: second.into(),
+            })
+        );
+        assert_eq!(
+            err.to_string(),
+            format!("`max_dt` is given twice: by --max-dt 2 and by {second}; give it once")
+        );
+        assert_eq!(spec, before, "nothing applied");
+    }
+    // The key is compared as `set` reads it: surrounding blanks do not make it another.
+    let err = spec
+        .set_all(&[Assignment::new("kp=1"), Assignment::new(" kp =2")])
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "`kp` is given twice: by kp=1 and by  kp =2; give it once"
+    );
+    let err = spec
+        .set_all(&[Assignment::from_source("kp=-1", "--param kp=-1")])
+        .unwrap_err();
+    assert!(
+        matches!(&err, RegistryError::Given { source, error }
+            if source == "--param kp=-1"
+                && matches!(**error, RegistryError::Param(ParamError::OutOfRange { .. }))),
+        "{err:?}"
+    );
+    assert!(
+        err.to_string()
+            .starts_with("--param kp=-1: parameter `kp` = -1"),
+        "{err}"
+    );
+    spec.set_all(&[Assignment::new("kp=0.7"), Assignment::new("dof=6")])
+        .unwrap();
+    assert_eq!((spec.get("kp"), spec.dof()), (Some(0.7), Some(Dof::Six)));
+}
+
+/// Asking `gyro` (no 6D/9D choice) for a dof is an error naming the filter and the filters
+/// that have one, through `set` and `set_all`; `set_dof`, for loops over every filter,
+/// leaves it as it is.
+#[test]
+fn dof_for_a_filter_without_one_is_refused() {
+    let with_dof: Vec<&str> = FilterKind::ALL
+        .iter()
+        .filter(|k| **k != FilterKind::Gyro)
+        .map(|k| k.name())
+        .collect();
+    let mut gyro = FilterSpec::new("gyro").unwrap();
+    let err = gyro.set("dof=6").unwrap_err();
+    assert_eq!(
+        err,
+        RegistryError::NoDof {
+            filter: "gyro",
+            with_dof: with_dof.clone()
+        }
+    );
+    let err = gyro
+        .set_all(&[Assignment::from_source("dof=9", "--dof 9")])
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "--dof 9: filter `gyro` has no 6D/9D choice (no `dof` parameter); leave dof out, or choose a filter that has one: {}",
+            with_dof.join(", ")
+        )
+    );
+    assert_eq!(gyro, FilterSpec::new("gyro").unwrap());
+    gyro.set_dof(Dof::Six).unwrap();
+    assert_eq!(gyro.dof(), None);
 }
 
 /// `max_gyr` decides what a saturated gyroscope is: a 50 rad/s sample (about 2900 °/s) is

@@ -389,6 +389,16 @@ pub enum ParamError {
     },
     /// Not of the form `key=value`.
     Syntax(std::string::String),
+    /// One parameter given twice to [`FilterSpec::set_all`](crate::registry::FilterSpec::set_all)
+    /// (even with the same value): refused so that neither value silently wins.
+    Repeated {
+        /// Parameter name.
+        name: std::string::String,
+        /// How it was given first (an option, a column, or the `key=value` text).
+        first: std::string::String,
+        /// How it was given again.
+        second: std::string::String,
+    },
 }
 
 #[cfg(feature = "std")]
@@ -417,6 +427,14 @@ impl fmt::Display for ParamError {
                 kind.describe()
             ),
             Self::Syntax(text) => write!(f, "`{text}` is not of the form key=value"),
+            Self::Repeated {
+                name,
+                first,
+                second,
+            } => write!(
+                f,
+                "`{name}` is given twice: by {first} and by {second}; give it once"
+            ),
         }
     }
 }
