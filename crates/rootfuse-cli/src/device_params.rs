@@ -1,10 +1,12 @@
 //! `run --device-params FILE`: per-device filter parameters over the run's own.
-use rootfuse_attitude::registry::FilterSpec;
+use rootfuse_attitude::registry::{Assignment, FilterSpec};
 use rootfuse_columnar::DeviceParams;
 use std::path::{Path, PathBuf};
 
 /// The specs of the devices a parameter table names: the run's spec with the table's values
-/// set over it (an empty cell keeps the run's value).
+/// set over it (an empty cell keeps the run's value). A table column that the command line
+/// also sets is that precedence, not a conflict: the table is the per-device exception to
+/// the run's values, and [`overrides`](Self::overrides) says so aloud.
 pub struct DeviceSpecs {
     /// The table.
     pub file: PathBuf,
@@ -12,13 +14,31 @@ pub struct DeviceSpecs {
     pub labels: Vec<String>,
     /// `specs[i]` is the spec of `labels[i]`.
     pub specs: Vec<FilterSpec>,
+    /// The columns that the command line also sets: `(column, how the command line set it,
+    /// devices with a value in that column)`.
+    overridden: Vec<(String, String, usize)>,
 }
 
 impl DeviceSpecs {
     /// Reads `path` (CSV, Parquet or Arrow: `device`, then one column per parameter) over
-    /// `base`. An error names the file, the line or row and the column.
-    pub fn read(path: &Path, base: &FilterSpec) -> Result<Self, String> {
+    /// `base`, the spec the command line's `given` parameters made. An error names the file,
+    /// the line or row and the column.
+    pub fn read(path: &Path, base: &FilterSpec, given: &[Assignment]) -> Result<Self, String> {
         let table = DeviceParams::read(path).map_err(|e| e.to_string())?;
+        let overridden = table
+            .names
+            .iter()
+            .enumerate()
+            .filter_map(|(c, name)| {
+                let source = given.iter().find(|a| {
+                    a.text
+                        .split_once('=')
+                        .is_some_and(|(k, _)| k.trim() == name)
+                })?;
+                let devices = table.rows.iter().filter(|r| r.values[c].is_some()).count();
+                Some((name.clone(), source.source.clone(), devices))
+            })
+            .collect();
         let mut labels = Vec::with_capacity(table.rows.len());
         let mut specs = Vec::with_capacity(table.rows.len());
         for row in &table.rows {
@@ -43,7 +63,22 @@ impl DeviceSpecs {
             file: path.to_owned(),
             labels,
             specs,
+            overridden,
         })
+    }
+
+    /// One note per table column that the command line also sets: which value each device
+    /// runs with.
+    pub fn overrides(&self) -> Vec<String> {
+        self.overridden
+            .iter()
+            .map(|(column, source, devices)| {
+                format!(
+                    "note: --device-params {}: column `{column}` is set over {source} for the {devices} device(s) with a value in it; the others run with {source}",
+                    self.file.display()
+                )
+            })
+            .collect()
     }
 
     /// The spec of the device `label`, if the table names it.

@@ -88,7 +88,8 @@ pub struct RunArgs {
     /// Per-device parameters: a CSV, Parquet or Arrow table with a `device` column (as the
     /// fleet names its devices; a CSV recording is the device named after its file stem),
     /// then one column per parameter (an empty cell keeps the run's value). Listed devices
-    /// run with their own parameters over `--param`; the others with the run's. Devices
+    /// run with their own parameters over `--param`, `--dof` and `--max-dt` (a column the
+    /// command line also sets is noted, not refused); the others with the run's. Devices
     /// that share the structural parameters (`dof`, `max_dt`, `max_gyr`, switches) share
     /// SIMD chunks; each device equals its own scalar run bit for bit.
     #[arg(long, value_name = "FILE")]
@@ -180,10 +181,13 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         let device_specs = args
             .device_params
             .as_deref()
-            .map(|p| crate::device_params::DeviceSpecs::read(p, &spec))
+            .map(|p| crate::device_params::DeviceSpecs::read(p, &spec, &args.filter.assignments()))
             .transpose()?;
         if device_specs.is_some() && args.offline {
             return Err("--device-params runs fleets and CSV recordings online; --offline smooths each file with the run's parameters".into());
+        }
+        for note in device_specs.iter().flat_map(|d| d.overrides()) {
+            eprintln!("{note}");
         }
         let job = Job {
             device_specs: device_specs.as_ref(),

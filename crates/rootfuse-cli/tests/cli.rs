@@ -1030,8 +1030,8 @@ fn run_help_documents_gaps_and_signals() {
 }
 
 /// Whole-number parameters refuse fractions instead of rounding them, and `--dof` cannot
-/// silently beat a different `--param dof` (both used to run: `dof=7` as 6D, `window=2.5` as
-/// 3, `--dof 9 --param dof=6` as 9D).
+/// silently beat a `--param dof` (both used to run: `dof=7` as 6D, `window=2.5` as 3,
+/// `--dof 9 --param dof=6` as 9D).
 #[test]
 fn parameters_refuse_fractions_and_contradictions() {
     let dir = temp_dir("kinds");
@@ -1049,7 +1049,7 @@ fn parameters_refuse_fractions_and_contradictions() {
         ),
         (
             vec!["--filter", "mahony", "--dof", "9", "--param", "dof=6"],
-            "disagrees",
+            "`dof` is given twice: by --dof 9 and by --param dof=6; give it once",
         ),
         (vec!["--filter", "mahony", "--max-dt", "0"], "--max-dt"),
     ] {
@@ -1060,20 +1060,75 @@ fn parameters_refuse_fractions_and_contradictions() {
         assert!(stderr.contains(expected), "{args:?}: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{args:?}: one line: {stderr}");
     }
-    // The same value twice is fine.
-    let (code, _, stderr) = run_paths(&[
-        &"run",
-        &input,
-        &"--out",
-        &out,
-        &"--filter",
-        &"mahony",
-        &"--dof",
-        &"6",
-        &"--param",
-        &"dof=6",
-    ]);
-    assert_eq!(code, Some(0), "{stderr}");
+}
+
+/// A parameter given twice, by its own option and by `--param` or by two `--param`, is one
+/// error naming both, in every command that takes them (`run`, `throughput`): one value used
+/// to win silently. So is `--dof` for `gyro`, which has no 6D/9D choice and ignored it.
+#[test]
+fn parameters_given_twice_or_where_unused_are_refused() {
+    let dir = temp_dir("twice");
+    let input = simulated(&dir, "x.csv", 1);
+    let out = dir.join("out");
+    let with_dof = "complementary, mahony, madgwick, ekf, sqrt-eskf, ecf-ekf, \
+        complementary-reconstruction, lsq-fusion, heading-pipeline";
+    let cases: [(&[&str], String); 5] = [
+        (
+            &["--filter", "mahony", "--max-dt", "2", "--param", "max_dt=3"],
+            "`max_dt` is given twice: by --max-dt 2 and by --param max_dt=3; give it once".into(),
+        ),
+        (
+            &["--filter", "mahony", "--param", "kp=1", "--param", "kp=2"],
+            "`kp` is given twice: by --param kp=1 and by --param kp=2; give it once".into(),
+        ),
+        (
+            &["--filter", "mahony", "--param", "kp=1", "--param", "kp=1"],
+            "`kp` is given twice: by --param kp=1 and by --param kp=1; give it once".into(),
+        ),
+        (
+            &["--filter", "mahony", "--dof", "6", "--param", "dof=6"],
+            "`dof` is given twice: by --dof 6 and by --param dof=6; give it once".into(),
+        ),
+        (
+            &["--filter", "gyro", "--dof", "6"],
+            format!(
+                "--dof 6: filter `gyro` has no 6D/9D choice (no `dof` parameter); leave dof out, or choose a filter that has one: {with_dof}"
+            ),
+        ),
+    ];
+    for (args, expected) in &cases {
+        let expected = format!("error: {expected}\n");
+        let mut run: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"run", &input, &"--out", &out];
+        run.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
+        let (code, _, stderr) = run_paths(&run);
+        assert_eq!(
+            (code, stderr.as_str()),
+            (Some(2), expected.as_str()),
+            "run {args:?}"
+        );
+        let mut throughput: Vec<&dyn AsRef<std::ffi::OsStr>> =
+            vec![&"throughput", &"--channels", &"8", &"--samples", &"10"];
+        throughput.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
+        let (code, _, stderr) = run_paths(&throughput);
+        assert_eq!(
+            (code, stderr.as_str()),
+            (Some(2), expected.as_str()),
+            "throughput {args:?}"
+        );
+    }
+    assert!(!out.exists(), "nothing written");
+    // Each once is fine, and gyro runs without a dof.
+    for args in [
+        &[
+            "--filter", "mahony", "--max-dt", "2", "--param", "kp=1", "--dof", "6",
+        ][..],
+        &["--filter", "gyro"],
+    ] {
+        let mut run: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"run", &input, &"--out", &out];
+        run.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
+        let (code, _, stderr) = run_paths(&run);
+        assert_eq!(code, Some(0), "{args:?}: {stderr}");
+    }
 }
 
 /// The gap limit is settable: a 2 s gap is skipped by default (flag 1 at that sample) and

@@ -581,3 +581,84 @@ fn device_params_run_each_device_with_its_own() {
         "{stderr}"
     );
 }
+
+/// Device `d` of the estimates equals the library's run of the simulated device with `spec`
+/// bit for bit.
+fn assert_device_runs(rows: &[(i64, f64, [f64; 4])], d: u64, seconds: f64, spec: &FilterSpec) {
+    let rec = scenario("slow-rotation", d, seconds, 100.0).unwrap();
+    let want = &run_recordings(spec, &[rec], Precision::F64)[0].quat;
+    let got: Vec<[f64; 4]> = rows
+        .iter()
+        .filter(|r| r.0 == d as i64)
+        .map(|r| r.2)
+        .collect();
+    assert_eq!(got.len(), want.len(), "device {d}");
+    for (k, (g, w)) in got.iter().zip(want).enumerate() {
+        let same = g
+            .iter()
+            .zip(w.to_array())
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "device {d}, sample {k}: {g:?} vs {w:?}");
+    }
+}
+
+/// A `--device-params` column that the command line also sets is the documented precedence,
+/// said aloud: the table's value for its devices, the command line's for the others. A
+/// table with one parameter in two columns is refused (the last column used to win).
+#[test]
+fn device_params_over_the_command_line_is_said_aloud() {
+    let dir = temp_dir("device_params_over");
+    let fleet = dir.join("fleet.parquet");
+    let (code, _, stderr) = run(&[
+        &"simulate",
+        &"--devices",
+        &"2",
+        &"--seconds",
+        &"1",
+        &"--out",
+        &fleet,
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let with_table = |table: &Path, out: &Path| {
+        run(&[
+            &"run",
+            &fleet,
+            &"--filter",
+            &"flagship",
+            &"--param",
+            &"gyr_noise=0.03",
+            &"--device-params",
+            &table,
+            &"--out",
+            &out,
+        ])
+    };
+    let table = dir.join("params.csv");
+    std::fs::write(&table, "device,gyr_noise\n0,0.02\n").unwrap();
+    let out = dir.join("out");
+    let (code, _, stderr) = with_table(&table, &out);
+    assert_eq!(code, Some(0), "{stderr}");
+    let note = format!(
+        "note: --device-params {}: column `gyr_noise` is set over --param gyr_noise=0.03 for the 1 device(s) with a value in it; the others run with --param gyr_noise=0.03\n",
+        table.display()
+    );
+    assert!(stderr.starts_with(&note), "{stderr}");
+    let rows = read_parquet_estimates(&out.join("fleet.parquet"));
+    for (d, noise) in [(0, "0.02"), (1, "0.03")] {
+        let mut spec = FilterSpec::new("sqrt-eskf").unwrap();
+        spec.set(&format!("gyr_noise={noise}")).unwrap();
+        assert_device_runs(&rows, d, 1.0, &spec);
+    }
+
+    let twice = dir.join("twice.csv");
+    std::fs::write(&twice, "device,gyr_noise,gyr_noise\n0,0.02,0.01\n").unwrap();
+    let (code, _, stderr) = with_table(&twice, &dir.join("out2"));
+    assert_eq!(code, Some(2), "{stderr}");
+    assert_eq!(
+        stderr,
+        format!(
+            "error: {}: column `gyr_noise`: the table has this column twice; give each parameter one column\n",
+            twice.display()
+        )
+    );
+}

@@ -47,7 +47,7 @@ pub struct DeviceParams {
 impl DeviceParams {
     /// Reads `path`: CSV by its `.csv` extension, otherwise Parquet or Arrow IPC (told by
     /// the extension, see [`Format::of_path`]). Every value must be a number (or empty /
-    /// null); a device may appear once. Errors name the file, the row or line and the column.
+    /// null); a device may appear once, a parameter column once. Errors name the file, the row or line and the column.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, ColumnarError> {
         let path = path.as_ref();
         match Format::of_path(path) {
@@ -64,6 +64,20 @@ impl DeviceParams {
     }
 
     fn check_unique(self) -> Result<Self, ColumnarError> {
+        // A parameter in two columns would have one value silently win over the other.
+        if let Some((_, name)) = self
+            .names
+            .iter()
+            .enumerate()
+            .find(|(i, n)| self.names[..*i].contains(n))
+        {
+            return Err(bad(
+                &self.file,
+                "",
+                name,
+                "the table has this column twice; give each parameter one column".into(),
+            ));
+        }
         let mut seen = std::collections::HashSet::new();
         for r in &self.rows {
             if !seen.insert(r.device.as_str()) {

@@ -55,7 +55,9 @@ pub fn spec_from(
     if let Some(DofArg(d)) = dof {
         let d = Dof::from_count(d)
             .ok_or_else(|| PyValueError::new_err(format!("dof: expected 6 or 9, got {d}")))?;
-        spec.set_dof(d)
+        // `set`, not `set_dof`: a filter without a 6D/9D choice (`gyro`) refuses the dof
+        // instead of ignoring it.
+        spec.set(&format!("dof={}", d.count()))
             .map_err(|e| PyValueError::new_err(format!("dof: {e}")))?;
     }
     Ok(spec)
@@ -281,7 +283,8 @@ macro_rules! with_state {
 /// (`filters()` lists them, with every parameter, its unit, default and range; `"flagship"`
 /// is `"sqrt-eskf"`); parameters are keyword arguments validated by the registry (a
 /// ValueError names the parameter and the accepted range); `dof` 6 (gyroscope and
-/// accelerometer) or 9 (with magnetometer; the default of filters that have the choice).
+/// accelerometer) or 9 (with magnetometer; the default of filters that have the choice;
+/// `gyro` has none, and a `dof` for it is a ValueError).
 ///
 /// Conventions: quaternions `[w, x, y, z]`, sensor to earth, earth ENU; gyroscope rad/s,
 /// accelerometer m/s² (+g up at rest), magnetometer any consistent unit, time s.

@@ -102,6 +102,13 @@ def test_bad_filter_and_params():
         rf.Filter("mahony", kp="0.5")
     with pytest.raises(ValueError, match="dof: expected 6 or 9, got 7"):
         rf.Filter("mahony", dof=7)
+    # gyro has no 6D/9D choice: a dof for it used to be ignored.
+    for dof in (6, 9):
+        with pytest.raises(
+            ValueError,
+            match=r"^dof: filter `gyro` has no 6D/9D choice .*: complementary, mahony, ",
+        ):
+            rf.Filter("gyro", dof=dof)
     with pytest.raises(ValueError, match='precision: expected "f32" or "f64"'):
         rf.Filter("mahony", precision="f16")
 

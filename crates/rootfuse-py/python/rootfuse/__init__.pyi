@@ -40,7 +40,8 @@ class Filter:
     """A registered orientation filter by name (``filters()`` lists them), f32 or f64.
 
     ``Filter(name, dof=None, precision="f64", **params)``: parameters as keyword arguments,
-    validated by the registry (ValueError naming the parameter and its range).
+    validated by the registry (ValueError naming the parameter and its range); ``dof`` 6 or 9
+    (``gyro`` has no such choice: a ``dof`` for it is a ValueError).
     """
     def __init__(self, name: str, *, dof: Optional[int] = None, precision: str = "f64", **params: float) -> None: ...
     @property
