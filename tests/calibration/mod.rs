@@ -1,5 +1,3 @@
-//! Sensor calibration: batch ellipsoid fit, rest-phase gyro and accelerometer calibration,
-//! the online hard-iron estimator.
-mod batch;
-mod inertial;
+//! The online hard-iron estimator of `rootfuse-attitude` run through the filters (the batch
+//! fits are tested beside their crate, `crates/rootfuse-calibration/tests`).
 mod online;
