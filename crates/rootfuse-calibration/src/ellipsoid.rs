@@ -22,10 +22,11 @@
 //! constant): with [`FitOptions::norm`] it is scaled so that `|y_cal|` is that norm (field
 //! strength, gravity); without, so that `det S = 1`, and the resulting norm is reported.
 
+use crate::mat3::{det3, dist2, dot3, mat_vec, norm3, sub3, sym_apply, sym_eigen, sym_function};
 use crate::quality::{FitQuality, quality};
 use crate::{CalibrationError, FittedModel, RefusedModel};
 use rootfuse_attitude::{SensorCalibration, Vec3};
-use rootfuse_lsq::dense::faer::{Col, Mat, Side};
+use rootfuse_lsq::dense::faer::{Col, Mat};
 use rootfuse_lsq::dense::{Method, Options, Weights, solve};
 
 /// Options of [`fit_ellipsoid`].
@@ -386,10 +387,6 @@ fn finish(
     })
 }
 
-fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
-}
-
 /// Refuses data whose extreme value on some axis recurs in too many samples.
 fn check_saturation(data: &[[f64; 3]], options: &FitOptions) -> Result<(), CalibrationError> {
     let limit =
@@ -651,47 +648,4 @@ fn project_to_plane(
         .map(|p| [dot3(*p, e1), dot3(*p, e2), 0.0])
         .collect();
     Ok((pts, (e1, e2, normal)))
-}
-
-/// Eigen-decomposition of a symmetric 3×3 matrix: eigenvalues ascending and the eigenvectors
-/// as columns.
-pub(crate) fn sym_eigen(a: [[f64; 3]; 3]) -> Option<([f64; 3], [[f64; 3]; 3])> {
-    let m = Mat::<f64>::from_fn(3, 3, |i, j| a[i][j]);
-    let evd = m.self_adjoint_eigen(Side::Lower).ok()?;
-    let vals = core::array::from_fn(|i| evd.S()[i]);
-    let vecs = core::array::from_fn(|i| core::array::from_fn(|j| evd.U()[(i, j)]));
-    Some((vals, vecs))
-}
-
-/// `f(A) = V·diag(f)·Vᵀ` for eigenvectors `V` (columns).
-fn sym_function(vecs: &[[f64; 3]; 3], f: &[f64; 3]) -> [[f64; 3]; 3] {
-    core::array::from_fn(|i| {
-        core::array::from_fn(|j| (0..3).map(|k| vecs[i][k] * f[k] * vecs[j][k]).sum())
-    })
-}
-
-fn sym_apply(vecs: &[[f64; 3]; 3], f: &[f64; 3], x: [f64; 3]) -> [f64; 3] {
-    mat_vec(&sym_function(vecs, f), x)
-}
-
-fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    core::array::from_fn(|i| dot3(m[i], v))
-}
-
-fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn norm3(a: [f64; 3]) -> f64 {
-    dot3(a, a).sqrt()
-}
-
-fn det3(m: &[[f64; 3]; 3]) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }

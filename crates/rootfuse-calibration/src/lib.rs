@@ -39,6 +39,7 @@
 mod ellipsoid;
 mod error;
 mod inertial;
+mod mat3;
 mod quality;
 
 pub use ellipsoid::{

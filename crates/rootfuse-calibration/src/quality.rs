@@ -1,7 +1,7 @@
 //! How good a calibration is: residual of the norm, coverage of the sphere of directions,
 //! conditioning.
 
-use crate::ellipsoid::sym_eigen;
+use crate::mat3::sym_eigen;
 use rootfuse_attitude::{SensorCalibration, Vec3};
 
 /// Number of direction cells [`FitQuality::coverage`] counts (a cube's faces, each cut into
