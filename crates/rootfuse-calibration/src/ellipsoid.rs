@@ -89,10 +89,21 @@ pub struct EllipsoidFit {
     pub outliers: Vec<usize>,
 }
 
-/// Readings farther from the coordinate-wise median than this many times the median
-/// distance are gross outliers, left out before the fit: no ellipsoid a sensor draws has
-/// axes this unequal, and a glitch of 1e6 or 1e200 would otherwise decide the fit.
+/// Readings farther from the coordinate-wise median than this many times the 90th
+/// percentile of the distances are gross outliers, left out before the fit: a glitch of 1e6
+/// or 1e200 would otherwise decide it. The percentile, not the median distance, is the
+/// scale: a real recording covers the sphere of readings unevenly, its coordinate-wise
+/// median lies off the centre, and the median distance can be a fraction of the radius
+/// (BROAD 02: a third of its rows lay beyond four median distances).
 pub const GROSS_OUTLIER_FACTOR: f64 = 4.0;
+
+/// The share of the rows a trimmed fit keeps: the readings with the smallest norm residual
+/// under the previous fit ([`TRIM_STEPS`] times), so that up to [`MAX_OUTLIER_FRACTION`] of
+/// readings off the ellipsoid cannot pull the fit that judges them.
+const TRIM_KEEP: f64 = 0.9;
+
+/// Concentration steps of the trimmed fit (each refits on the best-fitting [`TRIM_KEEP`]).
+const TRIM_STEPS: usize = 3;
 
 /// After a first fit, readings whose relative norm residual is this many robust standard
 /// deviations (1.4826 × the median absolute deviation) from the median residual, and at
@@ -214,7 +225,29 @@ pub fn fit_ellipsoid(
         max_residual_relative: f64::INFINITY,
         ..*options
     };
-    let first = fit_finite(&kept(&out), skipped, &loose)?;
+    // The start of the trimmed fit: the rows nearest the coordinate-wise median (a burst of
+    // far readings can make the fit of all rows no ellipsoid at all), else all rows.
+    let central = {
+        let (dist, typical) = median_distances(&finite);
+        let near: Vec<bool> = dist
+            .iter()
+            .zip(&out)
+            .map(|(&d, &o)| o || !(d <= typical))
+            .collect();
+        kept(&near)
+    };
+    let mut first = match fit_finite(&central, skipped, &loose) {
+        Ok(fit) => fit,
+        Err(_) => fit_finite(&kept(&out), skipped, &loose)?,
+    };
+    for _ in 0..TRIM_STEPS {
+        let trimmed = best_fitting(&first.calibration, &finite, &out);
+        match fit_finite(&trimmed, skipped, &loose) {
+            Ok(fit) => first = fit,
+            // A trimmed set the model cannot fit: judge with the fit of all rows.
+            Err(_) => break,
+        }
+    }
     let more = residual_outliers(&first.calibration, &finite, &out);
     if out.iter().filter(|o| **o).count() + more.len() <= max_outliers {
         for i in more {
@@ -232,18 +265,56 @@ pub fn fit_ellipsoid(
     })
 }
 
-/// Per finite row: true for a reading farther than [`GROSS_OUTLIER_FACTOR`] median distances
-/// from the coordinate-wise median.
+/// Per finite row: true for a reading farther than [`GROSS_OUTLIER_FACTOR`] times the 90th
+/// percentile of the distances from the coordinate-wise median.
 fn gross_outliers(finite: &[(usize, [f64; 3])]) -> Vec<bool> {
+    let (dist, typical) = median_distances(finite);
+    // `!(d <= limit)`: an infinite or NaN distance (a 1e200 glitch squared) is an outlier.
+    dist.iter()
+        .map(|&d| !(d <= GROSS_OUTLIER_FACTOR * typical))
+        .collect()
+}
+
+/// Per finite row its distance from the coordinate-wise median, and the 90th percentile of
+/// those distances.
+fn median_distances(finite: &[(usize, [f64; 3])]) -> (Vec<f64>, f64) {
     let centre: [f64; 3] = core::array::from_fn(|k| {
         let mut c: Vec<f64> = finite.iter().map(|r| r.1[k]).collect();
         median(&mut c)
     });
     let dist: Vec<f64> = finite.iter().map(|r| dist2(r.1, centre).sqrt()).collect();
-    let typical = median(&mut dist.clone());
-    dist.iter()
-        .map(|&d| d > GROSS_OUTLIER_FACTOR * typical)
-        .collect()
+    let mut sorted = dist.clone();
+    let at = ((0.9 * sorted.len() as f64) as usize).min(sorted.len().saturating_sub(1));
+    let typical = sorted
+        .select_nth_unstable_by(at, f64::total_cmp)
+        .1
+        .to_owned();
+    (dist, typical)
+}
+
+/// The [`TRIM_KEEP`] share of the rows not `out` with the smallest relative norm residual
+/// under `cal`.
+fn best_fitting(
+    cal: &SensorCalibration<f64>,
+    finite: &[(usize, [f64; 3])],
+    out: &[bool],
+) -> Vec<[f64; 3]> {
+    let residual =
+        |y: [f64; 3]| ((cal.apply(Vec3::from_array(y)).norm() - cal.norm) / cal.norm).abs();
+    let mut rows: Vec<(f64, [f64; 3])> = finite
+        .iter()
+        .zip(out)
+        .filter(|(_, o)| !**o)
+        .map(|(r, _)| (residual(r.1), r.1))
+        .collect();
+    let keep = ((TRIM_KEEP * rows.len() as f64) as usize)
+        .max(1)
+        .min(rows.len());
+    if keep < rows.len() {
+        rows.select_nth_unstable_by(keep, |a, b| a.0.total_cmp(&b.0));
+        rows.truncate(keep);
+    }
+    rows.into_iter().map(|r| r.1).collect()
 }
 
 /// Positions in `finite` (not yet `out`) whose relative norm residual under `cal` is an
