@@ -111,11 +111,7 @@ pub fn rest_phases(
     };
     for b in (0..n).step_by(block) {
         let e = (b + block).min(n);
-        let still = e - b >= 2
-            && std_max(&gyr[b..e]) <= options.gyro_std_max
-            && std_max(&acc[b..e]) <= options.acc_std_max
-            && mean(&gyr[b..e]).norm() <= options.max_gyro_bias;
-        if !still {
+        if block_verdict(&gyr[b..e], &acc[b..e], options) != BlockVerdict::Still {
             close(&mut phases, open.take());
             continue;
         }
@@ -142,6 +138,133 @@ pub fn rest_phases(
     }
     close(&mut phases, open);
     phases
+}
+
+/// Why a block of samples is or is not still (the first test it fails, in this order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BlockVerdict {
+    Still,
+    /// Fewer than two samples.
+    Short,
+    GyroNoisy,
+    AccNoisy,
+    /// Steady, but turning faster than a bias can be.
+    Turning,
+}
+
+fn block_verdict(gyr: &[Vec3<f64>], acc: &[Vec3<f64>], options: &RestOptions) -> BlockVerdict {
+    // `!(x <= limit)`: a NaN (a non-finite value in the block) is not still.
+    if gyr.len() < 2 {
+        BlockVerdict::Short
+    } else if !(std_max(gyr) <= options.gyro_std_max) {
+        BlockVerdict::GyroNoisy
+    } else if !(std_max(acc) <= options.acc_std_max) {
+        BlockVerdict::AccNoisy
+    } else if !(mean(gyr).norm() <= options.max_gyro_bias) {
+        BlockVerdict::Turning
+    } else {
+        BlockVerdict::Still
+    }
+}
+
+/// Why [`rest_phases`] found what it found: per test, how many blocks failed it, the
+/// slowest mean rate among the steady but turning blocks and the longest run of still
+/// blocks. Its `Display` is one sentence for a user whose recording has no rest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestSearch {
+    /// Blocks examined.
+    pub blocks: usize,
+    /// Length of one block, s.
+    pub block_s: f64,
+    /// Blocks whose gyroscope varied more than `gyro_std_max`.
+    pub gyro_noisy: usize,
+    /// Blocks whose accelerometer varied more than `acc_std_max`.
+    pub acc_noisy: usize,
+    /// Steady blocks turning faster than `max_gyro_bias`.
+    pub turning: usize,
+    /// The slowest mean rate among the turning blocks, rad/s (NaN when none).
+    pub slowest_turn: f64,
+    /// The longest run of consecutive still blocks, s.
+    pub longest_still_s: f64,
+    /// The options searched with.
+    pub options: RestOptions,
+}
+
+/// The block-by-block account of a rest search (same arguments as [`rest_phases`]).
+pub fn rest_search(
+    t: &[f64],
+    gyr: &[Vec3<f64>],
+    acc: &[Vec3<f64>],
+    options: &RestOptions,
+) -> RestSearch {
+    let n = t.len().min(gyr.len()).min(acc.len());
+    let span = if n >= 2 { t[n - 1] - t[0] } else { 0.0 };
+    let rate = if span > 0.0 {
+        (n - 1) as f64 / span
+    } else {
+        0.0
+    };
+    let block = ((options.block_s * rate).round() as usize).max(2);
+    let mut r = RestSearch {
+        blocks: 0,
+        block_s: if rate > 0.0 { block as f64 / rate } else { 0.0 },
+        gyro_noisy: 0,
+        acc_noisy: 0,
+        turning: 0,
+        slowest_turn: f64::NAN,
+        longest_still_s: 0.0,
+        options: *options,
+    };
+    let mut run = 0.0f64;
+    for b in (0..n).step_by(block) {
+        let e = (b + block).min(n);
+        r.blocks += 1;
+        let verdict = block_verdict(&gyr[b..e], &acc[b..e], options);
+        match verdict {
+            BlockVerdict::GyroNoisy => r.gyro_noisy += 1,
+            BlockVerdict::AccNoisy => r.acc_noisy += 1,
+            BlockVerdict::Turning => {
+                r.turning += 1;
+                r.slowest_turn = r.slowest_turn.min(mean(&gyr[b..e]).norm());
+            }
+            BlockVerdict::Still | BlockVerdict::Short => {}
+        }
+        run = if verdict == BlockVerdict::Still {
+            run + (t[e - 1] - t[b])
+        } else {
+            0.0
+        };
+        r.longest_still_s = r.longest_still_s.max(run);
+    }
+    r
+}
+
+impl core::fmt::Display for RestSearch {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let o = &self.options;
+        write!(
+            f,
+            "of {} blocks of {:.2} s, {} had a gyroscope varying by more than {} rad/s, {} an accelerometer varying by more than {} m/s²",
+            self.blocks,
+            self.block_s,
+            self.gyro_noisy,
+            o.gyro_std_max,
+            self.acc_noisy,
+            o.acc_std_max
+        )?;
+        if self.turning > 0 {
+            write!(
+                f,
+                ", {} were steady but turning at {:.3} rad/s or more, faster than a bias can be ({} rad/s: a turntable is not rest)",
+                self.turning, self.slowest_turn, o.max_gyro_bias
+            )?;
+        }
+        write!(
+            f,
+            "; the longest still stretch lasted {:.2} s, {} s needed: record the sensor lying still for a few seconds",
+            self.longest_still_s, o.min_duration_s
+        )
+    }
 }
 
 fn mean(v: &[Vec3<f64>]) -> Vec3<f64> {

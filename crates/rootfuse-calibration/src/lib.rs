@@ -48,7 +48,8 @@ pub use ellipsoid::{
 };
 pub use error::CalibrationError;
 pub use inertial::{
-    AccelerometerFit, GyroBiasFit, RestOptions, RestPhase, accelerometer, gyro_bias, rest_phases,
+    AccelerometerFit, GyroBiasFit, RestOptions, RestPhase, RestSearch, accelerometer, gyro_bias,
+    rest_phases, rest_search,
 };
 pub use quality::{DIRECTION_CELLS, FitQuality};
 pub use rootfuse_attitude::SensorCalibration;

@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 use rootfuse_attitude::{Mat, Recording, SensorCalibration, Vec3};
 use rootfuse_calibration::{
     EllipsoidFit, FitOptions, RestOptions, RestPhase, accelerometer, fit_ellipsoid, gyro_bias,
-    rest_phases,
+    rest_phases, rest_search,
 };
 use rootfuse_io::{ImuGaps, read_csv_with, temporary_path};
 use serde_json::{Map, Value, json};
@@ -107,6 +107,19 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
                 acc.extend_from_slice(&rec.acc);
             }
             out!("rest phases: {}", phases.len());
+            if phases.is_empty() {
+                // Say why, file by file: which test the blocks failed.
+                let why: Vec<String> = recs
+                    .iter()
+                    .zip(&args.files)
+                    .map(|(rec, file)| {
+                        let search =
+                            rest_search(&rec.t, &rec.gyr, &rec.acc, &RestOptions::default());
+                        format!("{}: {search}", file.display())
+                    })
+                    .collect();
+                return Err(format!("no rest phase found: {}", why.join("; ")));
+            }
             if args.sensor == Sensor::Acc {
                 let fit = accelerometer(&acc, &phases, args.gravity, &FitOptions::default())
                     .map_err(|e| format!("acc: {e}"))?;

@@ -1170,6 +1170,52 @@ fn max_dt_sets_the_gap_limit() {
     }
 }
 
+/// `calibrate gyro` on a turntable (a steady 0.5 rad/s turn, no rest) says why it found no
+/// rest phase: the blocks were steady but turning faster than a bias can be, and how long
+/// the longest still stretch was against the length needed (it used to say "0 rest
+/// phases" and stop).
+#[test]
+fn calibrate_gyro_says_why_there_is_no_rest() {
+    use rootfuse_attitude::{Recording, Vec3};
+    let dir = temp_dir("turntable");
+    let n = 3000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.01).collect();
+    let rec = Recording {
+        name: "turn".into(),
+        gyr: vec![Vec3::new(0.0, 0.0, 0.5); n],
+        acc: vec![Vec3::new(0.0, 0.0, 9.81); n],
+        mag: Some(
+            t.iter()
+                .map(|&s| Vec3::new(20.0 * (0.5 * s).cos(), -20.0 * (0.5 * s).sin(), -45.0))
+                .collect(),
+        ),
+        t,
+        truth: None,
+        use_mask: None,
+    };
+    let file = dir.join("turn.csv");
+    write_recording(&file, &rec).unwrap();
+    let cal = dir.join("cal.json");
+    let o = run(&[
+        "calibrate",
+        "gyro",
+        file.to_str().unwrap(),
+        "--out",
+        cal.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    for part in [
+        "no rest phase found",
+        "120 were steady but turning at 0.500 rad/s or more",
+        "a turntable is not rest",
+        "the longest still stretch lasted 0.00 s, 1 s needed",
+    ] {
+        assert!(err.contains(part), "{part}: {err}");
+    }
+    assert!(!cal.exists(), "nothing written");
+}
+
 /// `calibrate mag` on a recording with 30 % hard iron writes a JSON calibration close to the
 /// truth; `calibrate gyro` adds its section to the same file; `run --calibration` applies it;
 /// a malformed calibration file is one clear error, exit 2.
