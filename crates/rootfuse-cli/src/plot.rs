@@ -19,7 +19,71 @@ fn fonts() -> Result<(), String> {
     }
 }
 
-const SIZE: (u32, u32) = (900, 480);
+const SIZE: (u32, u32) = (1000, 480);
+
+/// Width of the legend column right of the demo's charts, pixels: the legend never covers a
+/// bar or a curve.
+const LEGEND_WIDTH: u32 = 260;
+
+/// Checks before drawing that `path` can be written: plotters reports a missing or
+/// read-only folder only when it saves, as a debug dump of nested errors.
+fn writable(path: &Path) -> Result<(), String> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(format!(
+            "{}: the folder {} does not exist: create it or write the plot elsewhere",
+            path.display(),
+            dir.display()
+        ));
+    }
+    let probe = dir.join(format!(".rootfuse-plot-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .map_err(|e| {
+            format!(
+                "{}: cannot write in {}: {e}: choose a folder you can write to",
+                path.display(),
+                dir.display()
+            )
+        })?;
+    // The probe is ours and empty; failing to remove it changes nothing the user asked for.
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// The legend of a demo chart in its own column: a swatch (a line or a box) and a name per
+/// entry, top-aligned.
+fn side_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(&str, RGBColor)],
+    line: bool,
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    for (i, (name, color)) in entries.iter().enumerate() {
+        let y = 56 + 22 * i as i32;
+        if line {
+            area.draw(&PathElement::new(
+                vec![(8, y), (30, y)],
+                color.stroke_width(3),
+            ))?;
+        } else {
+            area.draw(&Rectangle::new([(10, y - 6), (24, y + 6)], color.filled()))?;
+        }
+        area.draw(&Text::new(
+            name.to_string(),
+            (38, y - 7),
+            ("sans-serif", 13),
+        ))?;
+    }
+    Ok(())
+}
 
 /// The frame every plot shares: white background left to the caller, title, margins and the
 /// x axis label area; `y_label_area` (pixels) depends on the width of the y tick labels.
@@ -39,17 +103,24 @@ fn titled<'a, 'b, DB: DrawingBackend>(
 
 type Drawn = Result<(), Box<dyn std::error::Error>>;
 
+/// Twelve distinguishable colours (more than the registry has filters: no two filters of a
+/// chart share one).
+const COLORS: [RGBColor; 12] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+    RGBColor(0, 0, 0),
+    RGBColor(255, 187, 120),
+];
+
 fn palette(i: usize) -> RGBColor {
-    const COLORS: [RGBColor; 8] = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-    ];
     COLORS[i % COLORS.len()]
 }
 
@@ -70,6 +141,7 @@ pub fn error_over_time(
     series: &[(String, Vec<f64>)],
 ) -> Result<String, String> {
     fonts()?;
+    writable(&dir.join(format!("{stem}.png")))?;
     let y_max = finite_max(series.iter().flat_map(|(_, v)| v)) * 1.05;
     let t_max = series.iter().map(|(_, v)| v.len()).max().unwrap_or(1) as f64 / rate;
     let (png, svg) = (
@@ -106,31 +178,27 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let mut chart = titled(&root, title, 52).build_cartesian_2d(0.0..t_max, 0.0..y_max)?;
+    let (plot, side) = root.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let mut chart = titled(&plot, title, 52).build_cartesian_2d(0.0..t_max, 0.0..y_max)?;
     chart
         .configure_mesh()
         .x_desc("time (s)")
         .y_desc("total error (deg)")
         .draw()?;
-    for (i, (name, values)) in series.iter().enumerate() {
-        let color = palette(i);
+    for (i, (_, values)) in series.iter().enumerate() {
         let points = values
             .iter()
             .enumerate()
             .filter(|(_, v)| v.is_finite())
             .map(|(k, v)| (k as f64 / rate, *v));
-        chart
-            .draw_series(LineSeries::new(points, color.stroke_width(2)))?
-            .label(name.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
+        chart.draw_series(LineSeries::new(points, palette(i).stroke_width(2)))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    let entries: Vec<(&str, RGBColor)> = series
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| (name.as_str(), palette(i)))
+        .collect();
+    side_legend(&side, &entries, true)?;
     root.present()?;
     Ok(())
 }
@@ -143,6 +211,7 @@ pub fn error_per_scenario(
     rows: &[(String, Vec<f64>)],
 ) -> Result<String, String> {
     fonts()?;
+    writable(&dir.join(format!("{stem}.png")))?;
     let y_max = finite_max(rows.iter().flat_map(|(_, v)| v)) * 1.1;
     let (png, svg) = (
         dir.join(format!("{stem}.png")),
@@ -178,7 +247,8 @@ where
     // Each scenario is a group of one bar per filter plus a gap.
     let width = rows.len().max(1) as f64 + 1.0;
     root.fill(&WHITE)?;
-    let mut chart = titled(&root, "mean total RMSE per scenario (9D)", 52)
+    let (plot, side) = root.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let mut chart = titled(&plot, "mean total RMSE per scenario (9D)", 52)
         .build_cartesian_2d(0.0..(groups as f64 * width), 0.0..y_max)?;
     chart
         .configure_mesh()
@@ -194,22 +264,20 @@ where
             ("sans-serif", 15),
         )
     }))?;
-    for (i, (name, values)) in rows.iter().enumerate() {
+    for (i, (_, values)) in rows.iter().enumerate() {
         let color = palette(i);
         let bars = values.iter().enumerate().map(|(g, v)| {
             let x0 = g as f64 * width + 0.5 + i as f64;
             Rectangle::new([(x0, 0.0), (x0 + 0.9, v.min(y_max))], color.filled())
         });
-        chart
-            .draw_series(bars)?
-            .label(name.as_str())
-            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
+        chart.draw_series(bars)?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    let entries: Vec<(&str, RGBColor)> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| (name.as_str(), palette(i)))
+        .collect();
+    side_legend(&side, &entries, false)?;
     root.present()?;
     Ok(())
 }
@@ -229,6 +297,7 @@ pub struct TraceSeries {
 /// by its extension.
 pub fn stress_trace(path: &Path, title: &str, series: &[TraceSeries]) -> Result<(), String> {
     fonts()?;
+    writable(path)?;
     let positive = || {
         series
             .iter()
@@ -335,6 +404,7 @@ pub fn throughput_sweep(
     caches: &[(String, f64)],
 ) -> Result<(), String> {
     fonts()?;
+    writable(path)?;
     let all = || lines.iter().flat_map(|l| &l.points);
     let x_min = all().map(|p| p.0).fold(f64::INFINITY, f64::min).max(1.0) / 1.5;
     let x_max = all().map(|p| p.0).fold(1.0, f64::max) * 1.5;
@@ -421,4 +491,29 @@ where
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every registered filter gets its own colour in a chart of all of them.
+    #[test]
+    fn palette_has_a_colour_per_filter() {
+        let n = rootfuse_attitude::registry::FilterKind::ALL.len();
+        let colours: Vec<RGBColor> = (0..n).map(palette).collect();
+        for (i, a) in colours.iter().enumerate() {
+            assert!(!colours[..i].contains(a), "filter {i} repeats a colour");
+        }
+    }
+
+    /// A plot into a missing folder is one readable line naming the path and the folder.
+    #[test]
+    fn unwritable_plot_paths_are_one_clear_line() {
+        let err = writable(Path::new("/nonexistent-rootfuse-dir/x.png")).unwrap_err();
+        assert_eq!(
+            err,
+            "/nonexistent-rootfuse-dir/x.png: the folder /nonexistent-rootfuse-dir does not exist: create it or write the plot elsewhere"
+        );
+    }
 }
