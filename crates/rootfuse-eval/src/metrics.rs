@@ -117,6 +117,17 @@ pub enum MetricsError {
         /// Its norm (NaN for an unknown row).
         norm: f64,
     },
+    /// A truth row that counts (`use = 1`, finite) is no orientation: its norm is off 1 by
+    /// more than [`UNIT_NORM_TOLERANCE`] (all-zero truth rows scored 0° against anything).
+    #[error(
+        "truth row {row}: norm {norm} is not 1 (within {UNIT_NORM_TOLERANCE}): not an orientation; mark rows without truth with NaN or use = 0"
+    )]
+    TruthNotAnOrientation {
+        /// 0-based row.
+        row: usize,
+        /// Its norm.
+        norm: f64,
+    },
 }
 
 /// How far from 1 the norm of an estimate that counts may be: a quaternion written with
@@ -130,9 +141,19 @@ fn check_orientations(
     mask: Option<&[bool]>,
 ) -> Result<(), MetricsError> {
     for (row, q) in est.iter().enumerate() {
+        if !counted(truth, mask, row) {
+            continue;
+        }
+        let truth_norm = truth[row].norm();
+        if (truth_norm - 1.0).abs() > UNIT_NORM_TOLERANCE {
+            return Err(MetricsError::TruthNotAnOrientation {
+                row,
+                norm: truth_norm,
+            });
+        }
         let norm = q.norm();
         let off = (norm - 1.0).abs();
-        if counted(truth, mask, row) && (off.is_nan() || off > UNIT_NORM_TOLERANCE) {
+        if off.is_nan() || off > UNIT_NORM_TOLERANCE {
             return Err(MetricsError::NotAnOrientation { row, norm });
         }
     }

@@ -26,7 +26,24 @@ fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<boo
         Some(o) => {
             let v: Vec<bool> = match o.extract::<Vec<bool>>() {
                 Ok(v) => v,
-                Err(_) => vector(o, "use")?.iter().map(|&x| x != 0.0).collect(),
+                Err(_) => {
+                    // Float arrays directly; integer arrays and lists of numbers element-wise.
+                    let values: Vec<f64> = match vector(o, "use") {
+                        Ok(v) => v.iter().copied().collect(),
+                        Err(e) => o.extract::<Vec<f64>>().map_err(|_| e)?,
+                    };
+                    // 0 or 1 only: a NaN (`x != 0.0` is true for it) would count its row.
+                    if let Some((row, x)) = values
+                        .iter()
+                        .enumerate()
+                        .find(|(_, x)| **x != 0.0 && **x != 1.0)
+                    {
+                        return Err(PyValueError::new_err(format!(
+                            "use: row {row} is {x}: expected 0 or 1 (or booleans)"
+                        )));
+                    }
+                    values.iter().map(|&x| x != 0.0).collect()
+                }
             };
             same_length("use", v.len(), n)?;
             Ok(Some(v))

@@ -539,6 +539,14 @@ impl Filter {
     /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
     fn set_quat(&mut self, q: &Bound<'_, PyAny>) -> PyResult<()> {
         let q = quat_arg(q, "q")?;
+        // Normalising a quaternion far from unit norm hides a mistake (a vector of tiny
+        // numbers became the identity in f32).
+        let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if !(0.5..=2.0).contains(&norm) {
+            return Err(PyValueError::new_err(format!(
+                "q: norm {norm:.3e} is far from 1: expected a unit quaternion [w, x, y, z] (a small deviation is normalised)"
+            )));
+        }
         with_state!(&mut self.state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
         Ok(())
     }
@@ -550,6 +558,13 @@ impl Filter {
         if !b.iter().all(|x| x.is_finite()) {
             return Err(PyValueError::new_err(format!(
                 "bias: expected finite values, got {b:?}"
+            )));
+        }
+        // Checked in the filter's precision: 1e39 is finite in f64 and infinite in f32.
+        if matches!(self.state, State::F32(_)) && b.iter().any(|x| x.abs() > f64::from(f32::MAX)) {
+            return Err(PyValueError::new_err(format!(
+                "bias: {b:?} is not representable in this f32 filter (|value| > {:e}): expected rad/s",
+                f32::MAX
             )));
         }
         Ok(with_state!(&mut self.state, f => f.set_bias(Vec3::from_f64(b))))

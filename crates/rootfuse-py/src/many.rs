@@ -11,7 +11,7 @@ use crate::arrays::{
 };
 use crate::filter::{Inputs, rejections_dict, spec_from};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rootfuse_attitude::OrientationFilter;
@@ -74,7 +74,13 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
     match *a.shape.as_slice() {
         [c, n, 3] => Ok(Channels {
             arrays: vec![a],
-            lens: vec![n; c],
+            lens: {
+                // An empty (C, 0, 3) array can claim any C without holding any memory.
+                let mut lens = Vec::new();
+                lens.try_reserve_exact(c).map_err(|_| too_many(name, c))?;
+                lens.resize(c, n);
+                lens
+            },
             stacked: true,
         }),
         _ => Err(PyValueError::new_err(format!(
@@ -82,6 +88,28 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
             a.shape
         ))),
     }
+}
+
+/// Bytes `run_many` holds per channel whatever its length (its filter, specification,
+/// steps and result), measured at about 1.2 KB.
+const BYTES_PER_CHANNEL: usize = 1280;
+
+fn too_many(name: &str, channels: usize) -> PyErr {
+    PyMemoryError::new_err(format!(
+        "{name}: {channels} channels need about {BYTES_PER_CHANNEL} bytes each whatever their length, more memory than can be allocated: run fewer channels per call"
+    ))
+}
+
+/// Refuses, before anything is allocated per channel, a channel count whose bookkeeping
+/// alone cannot be allocated (an impossible size aborted the interpreter).
+fn check_channel_memory(channels: usize) -> PyResult<()> {
+    let bytes = channels
+        .checked_mul(BYTES_PER_CHANNEL)
+        .ok_or_else(|| too_many("gyr", channels))?;
+    let mut probe: Vec<u8> = Vec::new();
+    probe
+        .try_reserve_exact(bytes)
+        .map_err(|_| too_many("gyr", channels))
 }
 
 fn check_lens(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
@@ -220,8 +248,9 @@ pub fn run_many<'py>(
         }
         _ => None,
     };
-    let steps = channel_steps(dt, t, &g.lens)?;
     let count = g.lens.len();
+    check_channel_memory(count)?;
+    let steps = channel_steps(dt, t, &g.lens)?;
     let specs: Vec<FilterSpec> = match channel_params {
         None => vec![spec_from(name, dof, params)?; count],
         Some(list) => {

@@ -716,7 +716,8 @@ impl<T: Lane> SqrtEskf<T> {
             f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
             f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
             st.factor = Mat::select(fresh, &self.coef.initial_factor(), &st.factor);
-            st.bias = Vec3::select(fresh, Vec3::zero(), st.bias);
+            // The bias is kept: zero unless `set_bias` gave one before the first sample (the
+            // strapdown integration before this sample already used it).
             st.age = T::select(fresh, zero, st.age);
             st.heading_offset_var = T::select(fresh, T::from_f64(0.25), st.heading_offset_var);
             st.initialized |= fresh;
