@@ -232,7 +232,7 @@ pub fn fit_ellipsoid(
         let near: Vec<bool> = dist
             .iter()
             .zip(&out)
-            .map(|(&d, &o)| o || !(d <= typical))
+            .map(|(&d, &o)| o || d.is_nan() || d > typical)
             .collect();
         kept(&near)
     };
@@ -269,9 +269,9 @@ pub fn fit_ellipsoid(
 /// percentile of the distances from the coordinate-wise median.
 fn gross_outliers(finite: &[(usize, [f64; 3])]) -> Vec<bool> {
     let (dist, typical) = median_distances(finite);
-    // `!(d <= limit)`: an infinite or NaN distance (a 1e200 glitch squared) is an outlier.
+    // An infinite or NaN distance (a 1e200 glitch squared) is an outlier.
     dist.iter()
-        .map(|&d| !(d <= GROSS_OUTLIER_FACTOR * typical))
+        .map(|&d| d.is_nan() || d > GROSS_OUTLIER_FACTOR * typical)
         .collect()
 }
 

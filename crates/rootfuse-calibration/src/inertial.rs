@@ -152,15 +152,19 @@ enum BlockVerdict {
     Turning,
 }
 
+/// `x` above `limit`, or NaN: a non-finite value in the block is not still.
+fn exceeds(x: f64, limit: f64) -> bool {
+    x.is_nan() || x > limit
+}
+
 fn block_verdict(gyr: &[Vec3<f64>], acc: &[Vec3<f64>], options: &RestOptions) -> BlockVerdict {
-    // `!(x <= limit)`: a NaN (a non-finite value in the block) is not still.
     if gyr.len() < 2 {
         BlockVerdict::Short
-    } else if !(std_max(gyr) <= options.gyro_std_max) {
+    } else if exceeds(std_max(gyr), options.gyro_std_max) {
         BlockVerdict::GyroNoisy
-    } else if !(std_max(acc) <= options.acc_std_max) {
+    } else if exceeds(std_max(acc), options.acc_std_max) {
         BlockVerdict::AccNoisy
-    } else if !(mean(gyr).norm() <= options.max_gyro_bias) {
+    } else if exceeds(mean(gyr).norm(), options.max_gyro_bias) {
         BlockVerdict::Turning
     } else {
         BlockVerdict::Still

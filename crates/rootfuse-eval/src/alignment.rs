@@ -211,8 +211,8 @@ pub fn align_frames(
         return Err(AlignError::TooFewSamples(q.len()));
     }
     let excitation_deg = excitation_deg(&q, six_d);
-    // `!(x >= min)`: a NaN excitation is no excitation.
-    if !(excitation_deg >= MIN_EXCITATION_DEG) {
+    // A NaN excitation is no excitation.
+    if excitation_deg.is_nan() || excitation_deg < MIN_EXCITATION_DEG {
         return Err(AlignError::NotExcited {
             six_d,
             excitation_deg,

@@ -5,9 +5,12 @@
 use proptest::prelude::*;
 use rootfuse_lane::Lane;
 
-/// Distance in ulp between two finite floats of one type, through their ordered bit patterns.
+/// Distance in ulp between two finite floats of one type, through their ordered bit patterns;
+/// the absolute distance; the conversion from the sweep's f64 abscissa.
 trait Ulps: Copy {
     fn ulps(self, other: Self) -> u64;
+    fn distance(self, other: Self) -> f64;
+    fn from_f64(x: f64) -> Self;
 }
 
 impl Ulps for f64 {
@@ -17,6 +20,12 @@ impl Ulps for f64 {
             if b < 0 { i64::MIN - b } else { b }
         };
         key(self).abs_diff(key(other))
+    }
+    fn distance(self, other: Self) -> f64 {
+        (self - other).abs()
+    }
+    fn from_f64(x: f64) -> Self {
+        x
     }
 }
 
@@ -28,26 +37,26 @@ impl Ulps for f32 {
         };
         key(self).abs_diff(key(other))
     }
+    fn distance(self, other: Self) -> f64 {
+        f64::from((self - other).abs())
+    }
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
 }
+
+/// A function's name, the range swept, the lane's function and the reference.
+type Case<T> = (&'static str, f64, f64, fn(T) -> T, fn(T) -> T);
 
 /// The largest ulp distance of `got` from `want` over `n` evenly spaced points of `[lo, hi]`,
 /// counting a result within `abs` of the reference as exact (near a zero of the function the
 /// ulp is meaninglessly small).
-fn sweep<T: Ulps + Copy>(
-    n: usize,
-    lo: f64,
-    hi: f64,
-    abs: f64,
-    at: impl Fn(f64) -> T,
-    got: impl Fn(T) -> T,
-    want: impl Fn(T) -> T,
-    diff: impl Fn(T, T) -> f64,
-) -> u64 {
+fn sweep<T: Ulps>(n: usize, abs: f64, (_, lo, hi, got, want): Case<T>) -> u64 {
     (0..=n)
-        .map(|i| at(lo + (hi - lo) * i as f64 / n as f64))
+        .map(|i| T::from_f64(lo + (hi - lo) * i as f64 / n as f64))
         .map(|x| {
             let (g, w) = (got(x), want(x));
-            if diff(g, w) <= abs { 0 } else { g.ulps(w) }
+            if g.distance(w) <= abs { 0 } else { g.ulps(w) }
         })
         .max()
         .unwrap_or(0)
@@ -61,29 +70,27 @@ const PI: f64 = std::f64::consts::PI;
 #[test]
 fn trigonometry_is_within_three_ulp_of_std() {
     let n = 100_000;
-    let d64 = |a: f64, b: f64| (a - b).abs();
-    let d32 = |a: f32, b: f32| f64::from((a - b).abs());
-    let cases64: [(&str, f64, f64, fn(f64) -> f64, fn(f64) -> f64); 5] = [
+    let cases64: [Case<f64>; 5] = [
         ("sin", -PI, PI, Lane::sin, f64::sin),
         ("cos", -PI, PI, Lane::cos, f64::cos),
         ("atan", -1e3, 1e3, Lane::atan, f64::atan),
         ("asin", -1.0, 1.0, Lane::asin, f64::asin),
         ("acos", -1.0, 1.0, Lane::acos, f64::acos),
     ];
-    for (name, lo, hi, got, want) in cases64 {
-        let worst = sweep(n, lo, hi, 1e-16, |x| x, got, want, d64);
-        assert!(worst <= 3, "f64 {name}: {worst} ulp from std");
+    for case in cases64 {
+        let worst = sweep(n, 1e-16, case);
+        assert!(worst <= 3, "f64 {}: {worst} ulp from std", case.0);
     }
-    let cases32: [(&str, f64, f64, fn(f32) -> f32, fn(f32) -> f32); 5] = [
+    let cases32: [Case<f32>; 5] = [
         ("sin", -PI, PI, Lane::sin, f32::sin),
         ("cos", -PI, PI, Lane::cos, f32::cos),
         ("atan", -1e3, 1e3, Lane::atan, f32::atan),
         ("asin", -1.0, 1.0, Lane::asin, f32::asin),
         ("acos", -1.0, 1.0, Lane::acos, f32::acos),
     ];
-    for (name, lo, hi, got, want) in cases32 {
-        let worst = sweep(n, lo, hi, 1e-7, |x| x as f32, got, want, d32);
-        assert!(worst <= 3, "f32 {name}: {worst} ulp from std");
+    for case in cases32 {
+        let worst = sweep(n, 1e-7, case);
+        assert!(worst <= 3, "f32 {}: {worst} ulp from std", case.0);
     }
 }
 

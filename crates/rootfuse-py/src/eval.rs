@@ -29,7 +29,7 @@ fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<boo
                 Err(_) => {
                     // Float arrays directly; integer arrays and lists of numbers element-wise.
                     let values: Vec<f64> = match vector(o, "use") {
-                        Ok(v) => v.iter().copied().collect(),
+                        Ok(v) => v.to_vec(),
                         Err(e) => o.extract::<Vec<f64>>().map_err(|_| e)?,
                     };
                     // 0 or 1 only: a NaN (`x != 0.0` is true for it) would count its row.
