@@ -509,6 +509,16 @@ fn lowpass_gain_is_exact() {
             lowpass_gain(dts[i] as f32, taus[i] as f32).to_bits()
         );
     }
+    // Every lane in the series' range (a jittered `dt`): the vectorised f32 path.
+    let dts: [f32; 8] = core::array::from_fn(|i| 0.0035 * (1.0 + 0.01 * (i as f32 - 3.5)));
+    let taus: [f32; 8] = core::array::from_fn(|i| [0.1, 0.15, 1.0, 20.0][i % 4]);
+    let g = lowpass_gain(f32x8::from_fn(|i| dts[i]), f32x8::from_fn(|i| taus[i]));
+    for i in 0..8 {
+        assert_eq!(
+            g.extract(i).to_bits(),
+            lowpass_gain(dts[i], taus[i]).to_bits()
+        );
+    }
     assert_eq!(lowpass_gain(0.01, 0.0), 1.0, "τ = 0: no low-pass");
     assert_eq!(lowpass_gain(0.0, 0.0), 0.0, "dt = 0 takes nothing in");
     assert_eq!(lowpass_gain(f64::NAN, 1.0), 0.0);

@@ -4,13 +4,16 @@
 //!
 //! ```sh
 //! cargo build --release -p rootfuse-attitude --example flagship_cost
-//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES]
+//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER]
 //! ```
 //! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (286 Hz like BROAD):
 //! rests of 4 s between 10 s of rotation about a wandering axis, gravity and a dipping field
 //! rotated into the sensor frame, plus a little deterministic noise; every lane runs the same
 //! data. It is built before the clock starts, so only `update` is timed. Prints one JSON line:
 //! the best ns per channel-update over PASSES passes and a checksum of the final orientation.
+//! JITTER (default 0) is the relative spread of the time step: each sample's `dt`, in each lane
+//! on its own, is `(1 + JITTER·u)/286 s` with `u` uniform in [−1, 1], as a fleet of real
+//! recordings with jittered time stamps gives (a constant `dt` is the cheap case).
 
 use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
@@ -49,20 +52,30 @@ fn motion(n: usize) -> Vec<ImuSample<f64>> {
         .collect()
 }
 
-fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize) -> (f64, f64) {
+fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64) -> (f64, f64) {
     let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
-    let input: Vec<ImuSample<T>> = data
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let input: Vec<(ImuSample<T>, T)> = data
         .iter()
-        .map(|s| ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)))
+        .map(|s| {
+            let dt =
+                T::from_fn(|_| <T::Scalar as Lane>::from_f64((1.0 + jitter * uniform()) / RATE_HZ));
+            (ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)), dt)
+        })
         .collect();
-    let dt = T::from_f64(1.0 / RATE_HZ);
     let mut best = f64::INFINITY;
     let mut checksum = 0.0;
     for _ in 0..passes.max(1) {
         let mut f = SqrtEskf::<T>::new(&SqrtEskfParams::default());
         let start = Instant::now();
-        for s in std::hint::black_box(&input) {
-            f.update(s, dt);
+        for (s, dt) in std::hint::black_box(&input) {
+            f.update(s, *dt);
         }
         best = best.min(start.elapsed().as_secs_f64());
         let q = f.quat();
@@ -83,25 +96,28 @@ fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize) -> (f64, f64) {
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES]";
+    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER]";
     let mode = args.first().ok_or(usage)?;
     let number = |i: usize, default: usize| -> Result<usize, String> {
         args.get(i)
             .map_or(Ok(default), |a| a.parse().map_err(|_| usage.to_string()))
     };
     let (samples, passes) = (number(1, 100_000)?, number(2, 3)?);
+    let jitter: f64 = args
+        .get(3)
+        .map_or(Ok(0.0), |a| a.parse().map_err(|_| usage.to_string()))?;
     let data = motion(samples);
     let (ns, checksum) = match mode.as_str() {
-        "f32" => run::<f32>(&data, passes),
-        "f64" => run::<f64>(&data, passes),
-        "f32x8" => run::<wide::f32x8>(&data, passes),
-        "f64x4" => run::<wide::f64x4>(&data, passes),
+        "f32" => run::<f32>(&data, passes, jitter),
+        "f64" => run::<f64>(&data, passes, jitter),
+        "f32x8" => run::<wide::f32x8>(&data, passes, jitter),
+        "f64x4" => run::<wide::f64x4>(&data, passes, jitter),
         // Only the input: the baseline subtracted from instruction counts.
         "none" => (0.0, std::hint::black_box(&data).len() as f64),
         _ => return Err(usage.into()),
     };
     println!(
-        "{{\"mode\": \"{mode}\", \"samples\": {samples}, \"ns_per_channel_update\": {ns:.2}, \"checksum\": {checksum}}}"
+        "{{\"mode\": \"{mode}\", \"samples\": {samples}, \"jitter\": {jitter}, \"ns_per_channel_update\": {ns:.2}, \"checksum\": {checksum}}}"
     );
     Ok(())
 }

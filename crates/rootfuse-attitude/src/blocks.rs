@@ -87,11 +87,31 @@ pub fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
         if series.all() {
             return gain_series(x);
         }
+    } else if T::LANES > 1 && T::LANES <= MAX_SERIES_LANES {
+        // f32 lanes: the same f64 series as the scalar path, over an array of the lanes'
+        // `dt/τ` that the compiler vectorises (a jittered `dt` changes every lane's gain at
+        // every sample, and lane-by-lane calls cost more than the filter's arithmetic).
+        let mut x = [0.0f64; MAX_SERIES_LANES];
+        let mut series = true;
+        for (i, x) in x.iter_mut().enumerate().take(T::LANES) {
+            let (d, t): (f64, f64) = (dt.extract(i).into(), tau.extract(i).into());
+            *x = d / t;
+            series &= d > 0.0 && t > 0.0 && *x <= GAIN_SERIES_LIMIT;
+        }
+        if series {
+            for x in &mut x {
+                *x = gain_series(*x);
+            }
+            return T::from_fn(|i| <T::Scalar as Lane>::from_f64(x[i]));
+        }
     }
     T::from_fn(|i| {
         <T::Scalar as Lane>::from_f64(scalar_gain(dt.extract(i).into(), tau.extract(i).into()))
     })
 }
+
+/// The widest lane type (`f32x8` doubled) whose gains [`lowpass_gain`] evaluates as one array.
+const MAX_SERIES_LANES: usize = 16;
 
 /// The largest `x = dt/τ` [`lowpass_gain`] takes from its series.
 const GAIN_SERIES_LIMIT: f64 = 0.125;

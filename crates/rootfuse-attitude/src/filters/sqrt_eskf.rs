@@ -425,11 +425,13 @@ struct PerDt<T: Lane> {
     r_acc: T,
     r_rest: T,
     r_mag: T,
-    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference and the
-    /// accelerometer low-pass after the start-up (each stage τ/2).
+    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference, the
+    /// accelerometer low-pass after the start-up (each stage τ/2) and the innovation
+    /// covariance matching (`acc_adapt_window`).
     k_rest: T,
     k_ref: T,
     k_acc: T,
+    k_adapt: T,
 }
 
 impl<T: Lane> PerDt<T> {
@@ -450,6 +452,7 @@ impl<T: Lane> PerDt<T> {
             k_rest: lowpass_gain(dt, c.rest_tau),
             k_ref: lowpass_gain(dt, c.mag_ref_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
+            k_adapt: lowpass_gain(dt, c.acc_adapt_window),
         }
     }
 
@@ -944,7 +947,7 @@ impl<T: Lane> SqrtEskf<T> {
             let nominal = |alpha: T| alpha - r_acc + r_nominal;
             let nis = (eps[0] * eps[0] / nominal(alpha0) + nu1 * nu1 / nominal(alpha1))
                 * T::from_f64(0.5);
-            let k = lowpass_gain(s.dt, self.coef.acc_adapt_window);
+            let k = self.per_dt.k_adapt;
             let m = self.state.innovation_nis;
             let learn = adapt & apply & !starting & nis.is_finite();
             self.state.innovation_nis = T::select(learn, m + (nis - m) * k, m);
