@@ -300,3 +300,86 @@ fn accuracy_does_not_depend_on_the_sample_rate() {
         }
     }
 }
+
+/// `reset` then the same samples gives the same bits as a new filter: estimates, bias and
+/// covariance factor, 9D and 6D, f64 and f32.
+#[test]
+fn reset_is_a_new_filter() {
+    fn check<T: Lane>(rec: &Recording, dof: f64) {
+        let (fresh_est, fresh) = run::<T>(rec, dof);
+        let mut f = SqrtEskf::<T>::new(&params(dof));
+        let _ = rec.estimate(&mut f);
+        f.reset();
+        let est = rec.estimate(&mut f);
+        let bits = |q: &Quat<f64>| [q.w, q.x, q.y, q.z].map(f64::to_bits);
+        assert!(
+            est.iter().map(bits).eq(fresh_est.iter().map(bits)),
+            "{dof}D estimates differ after reset"
+        );
+        let fb = |v: Vec3<T>| [v.x, v.y, v.z].map(|x| x.extract(0).into().to_bits());
+        assert_eq!(fb(f.bias()), fb(fresh.bias()));
+        let fm = |m: &Mat<T, 6, 6>| m.m.map(|r| r.map(|x| x.extract(0).into().to_bits()));
+        assert_eq!(fm(f.covariance_factor()), fm(fresh.covariance_factor()));
+    }
+    let rec = scenario("slow-rotation", 3, 20.0, 100.0).unwrap();
+    for dof in [9.0, 6.0] {
+        check::<f64>(&rec, dof);
+        check::<f32>(&rec, dof);
+    }
+}
+
+/// `set_quat_with_sigma` sets the attitude covariance with the orientation: read back as
+/// `sigma²·I` at once, kept through the first sample when set before it (not replaced by
+/// the initial covariance), and refused with nothing changed for a NaN, negative or too
+/// large `sigma` and a quaternion far from unit norm.
+#[test]
+fn set_quat_with_sigma_sets_the_covariance() {
+    let rec = scenario("slow-rotation", 3, 10.0, 100.0).unwrap();
+    let q = Quat::from_euler_zyx(0.4, 0.05, -0.1);
+    for dof in [9.0, 6.0] {
+        // Running: σ² on the diagonal at once, no correlation left.
+        let (_, mut f) = run::<f64>(&rec, dof);
+        f.set_quat_with_sigma(q, 0.03).unwrap();
+        let p = f.attitude_covariance();
+        for i in 0..3 {
+            for j in 0..3 {
+                let want = if i == j { 0.03 * 0.03 } else { 0.0 };
+                assert!(
+                    (p.m[i][j] - want).abs() < 1e-15,
+                    "{dof}D P[{i}][{j}] = {}",
+                    p.m[i][j]
+                );
+            }
+        }
+        assert!(f.quat().angle_to(q) < 1e-12, "{dof}D orientation");
+        // Before the first sample: the first sample keeps σ (grown by one step's noise only),
+        // where a plain `set_quat` starts from the initial covariance.
+        let first = &rec.sample(0);
+        let mut with = SqrtEskf::<f64>::new(&params(dof));
+        with.set_quat_with_sigma(q, 0.001).unwrap();
+        with.update(first, rec.dt(0));
+        let mut plain = SqrtEskf::<f64>::new(&params(dof));
+        plain.set_quat(q);
+        plain.update(first, rec.dt(0));
+        let (pw, pp) = (with.attitude_covariance(), plain.attitude_covariance());
+        assert!(
+            pw.m[0][0] < 2.0 * 0.001 * 0.001 && pw.m[0][0] < pp.m[0][0] / 4.0,
+            "{dof}D: σ² = 1e-6 became {} (plain preset {})",
+            pw.m[0][0],
+            pp.m[0][0]
+        );
+        // Refusals leave the state as it was.
+        let before = f.clone();
+        for (q_bad, sigma) in [
+            (q, f64::NAN),
+            (q, -0.1),
+            (q, 4.0),
+            (Quat::new(1e-16, 1e-16, 0.0, 0.0), 0.1),
+            (Quat::new(f64::NAN, 0.0, 0.0, 0.0), 0.1),
+        ] {
+            let e = f.set_quat_with_sigma(q_bad, sigma).unwrap_err();
+            assert!(e.to_string().contains("outside"), "{e}");
+        }
+        assert_eq!(format!("{f:?}"), format!("{before:?}"));
+    }
+}

@@ -304,6 +304,9 @@ lane_state! {
         /// The orientation was set ([`OrientationFilter::set_quat`]) before the first sample:
         /// start from it rather than from the accelerometer.
         preset: T::Mask,
+        /// The attitude covariance came with the preset orientation
+        /// ([`SqrtEskf::set_quat_with_sigma`]): the first sample keeps it.
+        preset_covariance: T::Mask,
         mag_disturbed: T::Mask,
     }
 }
@@ -465,6 +468,47 @@ impl<T: Lane> PerDt<T> {
     }
 }
 
+impl<T: Lane> State<T> {
+    /// The state of a new filter: nothing seen yet, covariance from the initial standard
+    /// deviations.
+    fn new(coef: &Coefficients<T>) -> Self {
+        let zero = T::zero();
+        State {
+            strapdown: Quat::identity(),
+            correction: Quat::identity(),
+            heading_offset: zero,
+            heading_offset_var: T::one(),
+            bias: Vec3::zero(),
+            factor: coef.initial_factor(),
+            acc_lp: Vec3::new(zero, zero, T::one()),
+            acc_lp1: Vec3::new(zero, zero, T::one()),
+            rot_lp1: Mat::identity(),
+            rot_lp: Mat::identity(),
+            rest_gyr_lp: Vec3::zero(),
+            rest_acc_lp: Vec3::zero(),
+            rest_timer: zero,
+            acc_rejected_time: zero,
+            innovation_mean_x: zero,
+            innovation_mean_y: zero,
+            innovation_nis: T::one(),
+            bias_step: <T::Mask as Mask>::splat(false),
+            age: zero,
+            field: FieldReference {
+                norm: zero,
+                dip: zero,
+                candidate_norm: zero,
+                candidate_dip: zero,
+                candidate_time: zero,
+                rejected_time: zero,
+            },
+            initialized: <T::Mask as Mask>::splat(false),
+            preset: <T::Mask as Mask>::splat(false),
+            preset_covariance: <T::Mask as Mask>::splat(false),
+            mag_disturbed: <T::Mask as Mask>::splat(false),
+        }
+    }
+}
+
 /// Square-root multiplicative error-state Kalman filter (see the module documentation).
 ///
 /// State: the strapdown quaternion (quasi-inertial frame), the earth-frame correction `c`
@@ -499,46 +543,95 @@ impl<T: Lane> SqrtEskf<T> {
     pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {
         let coef = Coefficients::new(p);
         let per_dt = PerDt::new(&coef);
-        let zero = T::zero();
         Self {
-            state: State {
-                strapdown: Quat::identity(),
-                correction: Quat::identity(),
-                heading_offset: zero,
-                heading_offset_var: T::one(),
-                bias: Vec3::zero(),
-                factor: coef.initial_factor(),
-                acc_lp: Vec3::new(zero, zero, T::one()),
-                acc_lp1: Vec3::new(zero, zero, T::one()),
-                rot_lp1: Mat::identity(),
-                rot_lp: Mat::identity(),
-                rest_gyr_lp: Vec3::zero(),
-                rest_acc_lp: Vec3::zero(),
-                rest_timer: zero,
-                acc_rejected_time: zero,
-                innovation_mean_x: zero,
-                innovation_mean_y: zero,
-                innovation_nis: T::one(),
-                bias_step: <T::Mask as Mask>::splat(false),
-                age: zero,
-                field: FieldReference {
-                    norm: zero,
-                    dip: zero,
-                    candidate_norm: zero,
-                    candidate_dip: zero,
-                    candidate_time: zero,
-                    rejected_time: zero,
-                },
-                initialized: <T::Mask as Mask>::splat(false),
-                preset: <T::Mask as Mask>::splat(false),
-                mag_disturbed: <T::Mask as Mask>::splat(false),
-            },
+            state: State::new(&coef),
             coef,
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
             per_dt,
         }
+    }
+
+    /// Back to the state of a new filter with the same parameters: the samples that follow
+    /// give the same bits as they would in `SqrtEskf::new` (orientation, bias, covariance,
+    /// low-pass and rest states, counters).
+    ///
+    /// ```
+    /// use rootfuse_attitude::{ImuSample, OrientationFilter, SqrtEskf, SqrtEskfParams, Vec3};
+    /// let s = ImuSample::new(Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 0.0, 9.81), Vec3::zero());
+    /// let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+    /// f.update(&s, 0.01);
+    /// f.reset();
+    /// f.update(&s, 0.01);
+    /// let mut fresh = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+    /// fresh.update(&s, 0.01);
+    /// assert_eq!(f.quat(), fresh.quat());
+    /// ```
+    pub fn reset(&mut self) {
+        self.state = State::new(&self.coef);
+        self.rejections = Rejections::default();
+        self.per_dt = PerDt::new(&self.coef);
+    }
+
+    /// Sets the orientation `q` (sensor to earth, ENU; normalised here) as
+    /// [`set_quat`](OrientationFilter::set_quat) does, and its uncertainty: the attitude error
+    /// becomes `sigma`² · I (rad², per earth axis, every lane its own `sigma`), uncorrelated
+    /// with the bias error, whose covariance is kept. [`attitude_covariance`](Self::attitude_covariance)
+    /// reads `sigma`² back on the diagonal.
+    ///
+    /// Refused, with nothing changed: a non-finite `q` or one whose norm is outside
+    /// [0.5, 2] (not an orientation that was meant), and a `sigma` that is NaN, negative or
+    /// above π. The error names the value of the first lane that fails.
+    ///
+    /// ```
+    /// use rootfuse_attitude::{Quat, SqrtEskf, SqrtEskfParams};
+    /// let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+    /// f.set_quat_with_sigma(Quat::from_euler_zyx(0.5, 0.1, 0.0), 0.02).unwrap();
+    /// assert!((f.attitude_covariance().m[2][2] - 0.02 * 0.02).abs() < 1e-15);
+    /// assert!(f.set_quat_with_sigma(Quat::identity(), f64::NAN).is_err());
+    /// ```
+    pub fn set_quat_with_sigma(
+        &mut self,
+        q: Quat<T>,
+        sigma: T,
+    ) -> Result<(), crate::filters::InvalidParam> {
+        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+        let first_bad = |value: T, ok: T::Mask| {
+            (0..T::LANES)
+                .find(|&i| !ok.test(i))
+                .map(|i| value.extract(i).into())
+        };
+        let norm_ok = norm.simd_ge(T::from_f64(0.5)) & norm.simd_le(T::from_f64(2.0));
+        if let Some(value) = first_bad(norm, norm_ok) {
+            return Err(crate::filters::InvalidParam {
+                name: "|q|",
+                value,
+                min: 0.5,
+                max: 2.0,
+            });
+        }
+        let sigma_ok = sigma.simd_ge(T::zero()) & sigma.simd_le(T::from_f64(core::f64::consts::PI));
+        if let Some(value) = first_bad(sigma, sigma_ok) {
+            return Err(crate::filters::InvalidParam {
+                name: "sigma",
+                value,
+                min: 0.0,
+                max: core::f64::consts::PI,
+            });
+        }
+        self.set_quat(q);
+        // Rows 0–2 of the upper factor `S` become `[σ·I | 0]`: `P_θθ = σ²·I`, `P_θb = 0`,
+        // and `P_bb = S_bb·S_bbᵀ` (rows 3–5) is untouched.
+        let st = &mut self.state;
+        for i in 0..3 {
+            for j in 0..6 {
+                st.factor.m[i][j] = if i == j { sigma } else { T::zero() };
+            }
+        }
+        st.heading_offset_var = sigma * sigma;
+        st.preset_covariance |= !st.initialized;
+        Ok(())
     }
 
     /// The 6D orientation (gravity and gyro only; heading drifts), sensor to earth.
@@ -718,11 +811,19 @@ impl<T: Lane> SqrtEskf<T> {
             f.dip = T::select(mag_fresh, dip, f.dip);
             f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
             f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
-            st.factor = Mat::select(fresh, &self.coef.initial_factor(), &st.factor);
+            st.factor = Mat::select(
+                fresh & !st.preset_covariance,
+                &self.coef.initial_factor(),
+                &st.factor,
+            );
             // The bias is kept: zero unless `set_bias` gave one before the first sample (the
             // strapdown integration before this sample already used it).
             st.age = T::select(fresh, zero, st.age);
-            st.heading_offset_var = T::select(fresh, T::from_f64(0.25), st.heading_offset_var);
+            st.heading_offset_var = T::select(
+                fresh & !st.preset_covariance,
+                T::from_f64(0.25),
+                st.heading_offset_var,
+            );
             st.initialized |= fresh;
         }
         fresh
@@ -787,8 +888,9 @@ impl<T: Lane> SqrtEskf<T> {
         let extra = T::select(
             reacquire,
             c.reacquire_std,
+            // A preset with its own covariance is not a wrong first sample: no inflation.
             T::select(
-                starting,
+                starting & !self.state.preset_covariance,
                 c.reacquire_std * (dt / c.startup_time).sqrt(),
                 zero,
             ),
@@ -1131,6 +1233,8 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
         st.heading_offset = T::zero();
         st.preset |= !running;
+        // A plain preset starts from the initial covariance.
+        st.preset_covariance &= running;
     }
     fn set_bias(&mut self, bias: Vec3<T>) -> bool {
         self.state.bias = bias;
