@@ -52,11 +52,11 @@ fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<boo
 }
 
 /// Estimates, truth (both `(N, 4)`, same N) and the optional use mask.
-type Compared = (Vec<Quat<f64>>, Vec<Quat<f64>>, Option<Vec<bool>>);
+pub(crate) type Compared = (Vec<Quat<f64>>, Vec<Quat<f64>>, Option<Vec<bool>>);
 
 /// `truth` is an `(N, 4)` array, or a recording dict (`read_csv`, `simulate`) whose `truth`
 /// and `use` are taken, as `rootfuse eval` takes them (an explicit `use` wins).
-fn compared(
+pub(crate) fn compared(
     est: &Bound<'_, PyAny>,
     truth: &Bound<'_, PyAny>,
     r#use: Option<&Bound<'_, PyAny>>,
@@ -93,7 +93,7 @@ fn compared(
     Ok((e, t, mask))
 }
 
-fn alignment(dof: u8) -> PyResult<Alignment> {
+pub(crate) fn alignment(dof: u8) -> PyResult<Alignment> {
     match dof {
         9 => Ok(Alignment::NineD),
         6 => Ok(Alignment::SixD),
@@ -103,7 +103,7 @@ fn alignment(dof: u8) -> PyResult<Alignment> {
     }
 }
 
-fn metric_err(e: metrics::MetricsError) -> PyErr {
+pub(crate) fn metric_err(e: metrics::MetricsError) -> PyErr {
     PyValueError::new_err(format!("est, truth: {e}"))
 }
 

@@ -10,6 +10,7 @@
 
 mod arrays;
 mod calibration;
+mod consistency;
 mod eval;
 mod filter;
 mod fleet;
@@ -108,6 +109,7 @@ fn _rootfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(eval::rmse, m)?)?;
     m.add_function(wrap_pyfunction!(eval::error_series, m)?)?;
     m.add_function(wrap_pyfunction!(eval::heading_offset, m)?)?;
+    m.add_function(wrap_pyfunction!(consistency::consistency, m)?)?;
     m.add_function(wrap_pyfunction!(eval::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(eval::scenario_names, m)?)?;
     m.add_function(wrap_pyfunction!(eval::read_csv, m)?)?;

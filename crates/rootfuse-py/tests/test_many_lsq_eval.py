@@ -286,3 +286,33 @@ def test_rmse_refuses_what_eval_refuses():
         assert rf.rmse(est, truth, use=use)["n_used"] == n - 1
     with pytest.raises(ValueError, match="no ground truth"):
         rf.rmse(truth, {"truth": None, "use": None})
+
+
+def test_consistency_matches_a_closed_form_and_the_flagship():
+    # Errors of exactly one standard deviation about x: NEES/3 = 1/3, all inside.
+    n = 40
+    truth = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    half = 0.005
+    est = np.tile([np.cos(half), np.sin(half), 0.0, 0.0], (n, 1))
+    cov = np.tile(np.eye(3) * 1e-4, (n, 1, 1))
+    c = rf.consistency(est, cov, truth, skip=0.0)
+    assert abs(c["nees_total"] - 1.0 / 3.0) < 1e-9
+    assert c["coverage_total"] == 1.0 and c["n_used"] == n
+    upper = np.tile([1e-4, 0, 0, 1e-4, 0, 1e-4], (n, 1))
+    assert rf.consistency(est, upper, truth, skip=0.0) == c
+    # A floor widens the ellipsoid: NEES falls.
+    assert rf.consistency(est, cov, truth, skip=0.0, floor_deg=1.0)["nees_total"] < c["nees_total"]
+    # The flagship on a simulated recording: finite figures, samples counted.
+    rec = rf.simulate("slow-rotation", seed=1, duration_s=20.0)
+    out = rf.Filter("sqrt-eskf").update_batch(rec["gyr"], rec["acc"], rec["mag"], 0.01)
+    r = rf.consistency(out["quat"], out["covariance"], rec)
+    assert np.isfinite(r["nees_total"]) and 0.0 < r["coverage_total"] <= 1.0
+    assert r["n_used"] > 0.8 * len(rec["t"])
+    for bad, msg in [
+        (dict(cov=cov[:, :2, :2]), "cov: expected shape"),
+        (dict(cov=cov[:-1]), "cov: has 39 samples"),
+        (dict(cov=cov, floor_deg=-1.0), "floor_deg"),
+        (dict(cov=cov, skip=1.0), "skip"),
+    ]:
+        with pytest.raises(ValueError, match=msg):
+            rf.consistency(est, truth=truth, **bad)

@@ -210,6 +210,9 @@ def error_series(est: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, u
 def heading_offset(est: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, use: Optional[npt.ArrayLike] = None) -> Optional[float]:
     """The 6D heading offset, degrees."""
 
+def consistency(est: FloatArray, cov: FloatArray, truth: Union[FloatArray, Dict[str, Any]], *, use: Optional[npt.ArrayLike] = None, dof: int = 9, floor_deg: float = 0.0, skip: float = 0.1) -> Dict[str, float]:
+    """NEES/k and 95 % coverage of a reported attitude covariance, total and inclination."""
+
 def simulate(scenario: str, *, seed: int = 0, duration_s: float = 10.0, rate_hz: float = 100.0) -> Dict[str, Any]:
     """A simulated recording (t, gyr, acc, mag, truth, use, name)."""
 
