@@ -383,3 +383,53 @@ fn set_quat_with_sigma_sets_the_covariance() {
         assert_eq!(format!("{f:?}"), format!("{before:?}"));
     }
 }
+
+/// `set_bias_with_sigma` sets the bias and its covariance `σ²·I`, removes the attitude–bias
+/// correlation and keeps the attitude covariance; refusals change nothing.
+#[test]
+fn set_bias_with_sigma_keeps_the_attitude_covariance() {
+    let rec = scenario("slow-rotation", 3, 10.0, 100.0).unwrap();
+    for dof in [9.0, 6.0] {
+        let (_, mut f) = run::<f64>(&rec, dof);
+        let before = f.attitude_covariance();
+        let b = Vec3::new(0.01, -0.003, 0.002);
+        f.set_bias_with_sigma(b, 2e-3).unwrap();
+        assert_eq!(f.bias(), b);
+        let after = f.attitude_covariance();
+        for i in 0..3 {
+            for j in 0..3 {
+                let d = (after.m[i][j] - before.m[i][j]).abs();
+                assert!(
+                    d <= 1e-12 * before.m[i][i].max(before.m[j][j]),
+                    "{dof}D P[{i}][{j}]"
+                );
+            }
+        }
+        let s = f.covariance_factor();
+        for i in 0..6 {
+            for j in 0..6 {
+                // P = S·Sᵀ: row i against row j.
+                let pij: f64 = (0..6).map(|k| s.m[i][k] * s.m[j][k]).sum();
+                let want = match (i < 3, j < 3) {
+                    (false, false) if i == j => 4e-6,
+                    (true, true) => pij,
+                    _ => 0.0,
+                };
+                assert!((pij - want).abs() < 1e-18, "{dof}D P[{i}][{j}] = {pij}");
+            }
+        }
+        let kept = format!("{f:?}");
+        for (bias, sigma) in [
+            (Vec3::new(f64::NAN, 0.0, 0.0), 1e-3),
+            (Vec3::new(0.0, 2.0, 0.0), 1e-3),
+            (b, f64::NAN),
+            (b, -1.0),
+        ] {
+            assert!(f.set_bias_with_sigma(bias, sigma).is_err());
+        }
+        assert_eq!(format!("{f:?}"), kept);
+        // The filter runs on from there.
+        let _ = rec.estimate(&mut f);
+        assert!(f.quat().w.is_finite());
+    }
+}
