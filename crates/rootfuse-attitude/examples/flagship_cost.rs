@@ -4,8 +4,10 @@
 //!
 //! ```sh
 //! cargo build --release -p rootfuse-attitude --example flagship_cost
-//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER]
+//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER]
 //! ```
+//! FILTER is `sqrt-eskf` (the default), `mahony`, `madgwick` or `complementary`, each with its
+//! default parameters (9D).
 //! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (286 Hz like BROAD):
 //! rests of 4 s between 10 s of rotation about a wandering axis, gravity and a dipping field
 //! rotated into the sensor frame, plus a little deterministic noise; every lane runs the same
@@ -15,7 +17,10 @@
 //! on its own, is `(1 + JITTER·u)/286 s` with `u` uniform in [−1, 1], as a fleet of real
 //! recordings with jittered time stamps gives (a constant `dt` is the cheap case).
 
-use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse_attitude::filters::{
+    Complementary, ComplementaryParams, Madgwick, MadgwickParams, Mahony, MahonyParams, SqrtEskf,
+    SqrtEskfParams,
+};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
 use rootfuse_lane::wide;
 use std::time::Instant;
@@ -52,7 +57,29 @@ fn motion(n: usize) -> Vec<ImuSample<f64>> {
         .collect()
 }
 
-fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64) -> (f64, f64) {
+fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64, filter: &str) -> (f64, f64) {
+    match filter {
+        "mahony" => run_filter(data, passes, jitter, || {
+            Mahony::<T>::new(&MahonyParams::default())
+        }),
+        "madgwick" => run_filter(data, passes, jitter, || {
+            Madgwick::<T>::new(&MadgwickParams::default())
+        }),
+        "complementary" => run_filter(data, passes, jitter, || {
+            Complementary::<T>::new(&ComplementaryParams::default())
+        }),
+        _ => run_filter(data, passes, jitter, || {
+            SqrtEskf::<T>::new(&SqrtEskfParams::default())
+        }),
+    }
+}
+
+fn run_filter<T: Lane, F: OrientationFilter<T>>(
+    data: &[ImuSample<f64>],
+    passes: usize,
+    jitter: f64,
+    make: impl Fn() -> F,
+) -> (f64, f64) {
     let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut uniform = move || {
@@ -72,7 +99,7 @@ fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64) -> (f64, f6
     let mut best = f64::INFINITY;
     let mut checksum = 0.0;
     for _ in 0..passes.max(1) {
-        let mut f = SqrtEskf::<T>::new(&SqrtEskfParams::default());
+        let mut f = make();
         let start = Instant::now();
         for (s, dt) in std::hint::black_box(&input) {
             f.update(s, *dt);
@@ -96,7 +123,7 @@ fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64) -> (f64, f6
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER]";
+    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER]";
     let mode = args.first().ok_or(usage)?;
     let number = |i: usize, default: usize| -> Result<usize, String> {
         args.get(i)
@@ -106,12 +133,16 @@ fn main() -> Result<(), String> {
     let jitter: f64 = args
         .get(3)
         .map_or(Ok(0.0), |a| a.parse().map_err(|_| usage.to_string()))?;
+    let filter = args.get(4).map_or("sqrt-eskf", String::as_str);
+    if !["sqrt-eskf", "mahony", "madgwick", "complementary"].contains(&filter) {
+        return Err(usage.into());
+    }
     let data = motion(samples);
     let (ns, checksum) = match mode.as_str() {
-        "f32" => run::<f32>(&data, passes, jitter),
-        "f64" => run::<f64>(&data, passes, jitter),
-        "f32x8" => run::<wide::f32x8>(&data, passes, jitter),
-        "f64x4" => run::<wide::f64x4>(&data, passes, jitter),
+        "f32" => run::<f32>(&data, passes, jitter, filter),
+        "f64" => run::<f64>(&data, passes, jitter, filter),
+        "f32x8" => run::<wide::f32x8>(&data, passes, jitter, filter),
+        "f64x4" => run::<wide::f64x4>(&data, passes, jitter, filter),
         // Only the input: the baseline subtracted from instruction counts.
         "none" => (0.0, std::hint::black_box(&data).len() as f64),
         _ => return Err(usage.into()),
