@@ -1,0 +1,574 @@
+//! The flagship's per-sample steps (time update, start, rest, inclination, bias, heading) and
+//! its [`OrientationFilter`] implementation; the state and the public API are in the parent.
+
+use super::*;
+
+impl<T: Lane> SqrtEskf<T> {
+    /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
+    /// `F·S = [[A, B − dt·R·D], [0, D]]` is still upper triangular, so only `B` changes
+    /// (`D` upper triangular: 18 products), and the diagonal process noise
+    /// `G·Q^½ = diag(σ_θ·√dt·I, σ_b·√dt·I)` (the earth-frame attitude noise is isotropic,
+    /// `R·Rᵀ = I`) is folded in by [`add_diagonal_noise`], plus extra standard deviations on
+    /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition).
+    fn time_update(&mut self, r: &Mat<T, 3, 3>, dt: T, extra_tilt_std: T, extra_bias_std: T) {
+        let s = &mut self.state.factor;
+        for i in 0..3 {
+            for j in 3..6 {
+                let mut v = T::zero();
+                for k in 3..=j {
+                    v += r.m[i][k - 3] * s.m[k][j];
+                }
+                s.m[i][j] -= dt * v;
+            }
+        }
+        let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
+        // Re-acquisition noise is independent of the gyro noise: add it in quadrature (only
+        // when a lane has some: `√(q²) = q` exactly, so skipping changes nothing).
+        let (qt_xy, qb) =
+            if (extra_tilt_std.simd_ne(T::zero()) | extra_bias_std.simd_ne(T::zero())).any() {
+                (
+                    (qt * qt + extra_tilt_std * extra_tilt_std).sqrt(),
+                    (qb * qb + extra_bias_std * extra_bias_std).sqrt(),
+                )
+            } else {
+                (qt, qb)
+            };
+        add_diagonal_noise(s, &[qt_xy, qt_xy, qt, qb, qb, qb]);
+    }
+
+    /// Carlson's square-root scalar update ([`carlson_update`]: the factor stays upper
+    /// triangular) with measurement row `h` (zero before index `FIRST`), innovation `nu` and
+    /// variance `r`, applied where `apply`; the χ² gate (`gate` standard deviations) is
+    /// tested here. Returns (state correction `δx`, lanes accepted).
+    fn scalar_update<const FIRST: usize>(
+        &mut self,
+        h: [T; 6],
+        nu: T,
+        r: T,
+        gate: T,
+        apply: T::Mask,
+    ) -> ([T; 6], T::Mask, T) {
+        let (s_new, sf, alpha) = carlson_update::<T, FIRST>(&self.state.factor, &h, r);
+        let in_gate = (nu * nu).simd_le(gate * gate * alpha);
+        // With `r > 0` and a finite `α` (hence finite `f`), every entry of the new factor is
+        // finite (`|W_jj| ≤ 1`, `W_ij` bounded): checking `α` and `ν` is enough.
+        let ok = apply & r.simd_gt(T::zero()) & alpha.is_finite() & nu.is_finite();
+        let accept = ok & in_gate;
+        let factor = &mut self.state.factor;
+        for i in 0..6 {
+            for j in i..6 {
+                factor.m[i][j] = T::select(accept, s_new.m[i][j], factor.m[i][j]);
+            }
+        }
+        let k = nu / T::select(accept, alpha, T::one());
+        let dx = core::array::from_fn(|i| T::select(accept, sf[i] * k, T::zero()));
+        (dx, accept, alpha)
+    }
+
+    /// Injects an error-state correction into `c` and `b̂` (then the error is zero again).
+    /// Lanes that accepted no update keep `c` and `b̂` bit for bit (no renormalisation),
+    /// so whether an update ran at all — some are skipped when no lane needs them — is invisible.
+    fn inject(&mut self, correction: Correction<T>) {
+        let Correction { dx, accepted } = correction;
+        let st = &mut self.state;
+        let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
+        let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).normalize();
+        st.correction = Quat::select(accepted, corrected, st.correction);
+        st.bias = Vec3::select(accepted, st.bias + Vec3::new(dx[3], dx[4], dx[5]), st.bias);
+    }
+
+    /// Initialisation from the first usable sample: inclination from gravity, heading
+    /// offset from the magnetometer, low-passes seeded with the sample. Returns the lanes
+    /// that started with this sample.
+    fn initialise(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
+        let st = &mut self.state;
+        let fresh = !st.initialized & s.acc_ok;
+        // Every assignment below is a per-lane select on `fresh`: skipping the block when no
+        // lane starts changes no result and saves the work on every later sample.
+        if fresh.any() {
+            let zero = T::zero();
+            let one = T::one();
+            let (tilt, _) = tilt_from_acc(s.acc);
+            // Until now the gyroscope was integrated from the identity (or the preset
+            // orientation). A preset orientation, carried by the gyro, is kept; otherwise the
+            // inclination comes from gravity and the heading the gyro has integrated is kept
+            // (the heading of `q_gyr ⊗ tilt*`, as the metrics define it), so the estimate
+            // does not jump about earth-z.
+            let integrated = st.correction * st.strapdown;
+            let e = integrated * tilt.conj();
+            let levelled = Quat::from_heading(T::from_f64(2.0) * e.z.atan2(e.w)) * tilt;
+            let start = Quat::select(st.preset, integrated, levelled).normalize();
+            st.correction = Quat::select(fresh, start, st.correction);
+            st.strapdown = Quat::select(fresh, Quat::identity(), st.strapdown);
+            st.acc_lp = Vec3::select(fresh, acc_raw, st.acc_lp);
+            st.rot_lp = Mat::select(fresh, &Mat::identity(), &st.rot_lp);
+            st.acc_lp1 = Vec3::select(fresh, acc_raw, st.acc_lp1);
+            st.rot_lp1 = Mat::select(fresh, &Mat::identity(), &st.rot_lp1);
+            st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
+            st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
+            let (psi, psi_ok) = magnetic_heading_error(start, s.mag);
+            let mag_fresh = fresh & s.mag_ok & psi_ok;
+            st.heading_offset = T::select(
+                mag_fresh & !st.preset,
+                psi,
+                T::select(fresh, zero, st.heading_offset),
+            );
+            let h = start.rotate(s.mag);
+            let dip = (-h.z).clamp(-one, one).asin();
+            let f = &mut st.field;
+            f.norm = T::select(mag_fresh, s.mag_norm, f.norm);
+            f.dip = T::select(mag_fresh, dip, f.dip);
+            f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
+            f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
+            st.factor = Mat::select(
+                fresh & !st.preset_covariance,
+                &self.coef.initial_factor(),
+                &st.factor,
+            );
+            // The bias is kept: zero unless `set_bias` gave one before the first sample (the
+            // strapdown integration before this sample already used it).
+            st.age = T::select(fresh, zero, st.age);
+            st.heading_offset_var = T::select(
+                fresh & !st.preset_covariance,
+                T::from_f64(0.25),
+                st.heading_offset_var,
+            );
+            st.initialized |= fresh;
+        }
+        fresh
+    }
+
+    /// Lanes whose accelerometer sample, though within `max_acc`, deviates from the low-passed
+    /// specific force by more than `acc_spike`: a corrupted sample, not motion. Compared in
+    /// the sensor frame through the strapdown rotation of the previous sample (one sample of
+    /// rotation changes the comparison by far less than the threshold). Not before a lane
+    /// is initialised: it has no low-pass yet.
+    fn acc_spike(&self, s: &Screened<T>) -> T::Mask {
+        let st = &self.state;
+        let expected = st.strapdown.rotate_inverse(st.acc_lp);
+        let dev = (s.acc * s.acc_norm - expected).norm_squared();
+        // `>` is false for NaN, but a screened accelerometer is finite where `acc_ok`.
+        s.acc_ok & st.initialized & dev.simd_gt(self.coef.acc_spike2)
+    }
+
+    /// Rest detection: deviation of gyro and accelerometer from their own low-pass, and a
+    /// small bias-corrected low-passed rate. Returns the lanes at rest.
+    fn detect_rest(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
+        let c = &self.coef;
+        let st = &mut self.state;
+        let k_rest = self.per_dt.k_rest;
+        st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
+        let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
+        st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
+        let gyr_dev = (s.gyr - st.rest_gyr_lp).norm_squared();
+        let acc_dev = (acc_for_rest - st.rest_acc_lp).norm_squared();
+        // A slow constant-rate turn has a small deviation too: the bias-corrected low-passed
+        // rate must also be small (a rotating sensor is not at rest).
+        let turning = (st.rest_gyr_lp - st.bias)
+            .norm_squared()
+            .simd_gt(c.rest_gyr2);
+        // A sample without a usable accelerometer (skipped or gated) neither confirms nor
+        // breaks the rest: `acc_for_rest` holds the low-pass there, so its deviation is zero and
+        // the gyroscope alone decides. (Requiring `acc_ok` made one spike restart the
+        // `rest_time` wait.)
+        let still = gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2);
+        st.rest_timer = T::select(still, st.rest_timer + s.dt, T::zero());
+        self.at_rest()
+    }
+
+    /// Strapdown propagation and the square-root time update (with re-acquisition and
+    /// start-up inflation). Returns (bias-corrected rate, rad/s; growth of the 6D heading
+    /// variance, rad²; lanes in the start-up phase).
+    fn propagate(&mut self, s: &Screened<T>) -> (Vec3<T>, T, T::Mask) {
+        let zero = T::zero();
+        let dt = s.dt;
+        let w = s.gyr - self.state.bias;
+        self.state.strapdown =
+            (self.state.strapdown * Quat::from_rotation_vector(w * dt)).normalize();
+        let r6 = (self.state.correction * self.state.strapdown).to_rotation_matrix();
+
+        // A gate timing out means the model is wrong (wrong start, a bias step): re-inflate
+        // the inclination and the bias covariance. During the start-up phase the inclination
+        // covariance is inflated continuously (in total by `reacquire_std²`) so a wrong first
+        // sample is corrected by the attitude, not absorbed by the bias.
+        let c = &self.coef;
+        let reacquire = self.state.acc_rejected_time.simd_gt(c.acc_reject_time);
+        let starting = self.state.age.simd_lt(c.startup_time);
+        let extra = T::select(
+            reacquire,
+            c.reacquire_std,
+            // A preset with its own covariance is not a wrong first sample: no inflation.
+            T::select(
+                starting & !self.state.preset_covariance,
+                c.reacquire_std * (dt / c.startup_time).sqrt(),
+                zero,
+            ),
+        );
+        let extra_b = T::select(reacquire | self.state.bias_step, c.init_bias_std, zero);
+        self.state.age += dt;
+        // The 9D heading offset must follow the 6D heading drift: its variance grows by
+        // what the time update adds to the 6D heading variance (gyro noise and the
+        // earth-vertical bias uncertainty), plus `heading_walk` for magnetic model errors.
+        let pzz_before = row_norm2(&self.state.factor, 2);
+        self.time_update(&r6, dt, extra, extra_b);
+        let heading_growth = (row_norm2(&self.state.factor, 2) - pzz_before).max(zero);
+        self.state.acc_rejected_time = T::select(reacquire, zero, self.state.acc_rejected_time);
+        (w, heading_growth, starting)
+    }
+
+    /// Low-pass of the specific force and of the rotation in the quasi-inertial frame.
+    /// Returns the low-pass time constant τ, s.
+    fn lowpass_acc(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T {
+        let st = &mut self.state;
+        // The low-pass time constant grows linearly over the start-up phase, so the first
+        // seconds follow the accelerometer (and a wrong start is not frozen into the average).
+        let ramp = (st.age / self.coef.startup_time).min(T::one());
+        let tau = self.coef.tau_acc * ramp;
+        // Two equal first-order stages (τ/2 each): a critically damped second-order low-pass
+        // whose mean delay is still τ, with −40 dB/decade above its corner. After the
+        // start-up (ramp = 1 in every lane) the gain is the cached one.
+        let k_acc = if ramp.simd_lt(T::one()).any() {
+            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+        } else {
+            self.per_dt.k_acc
+        };
+        let a_i = st.strapdown.rotate(acc_raw);
+        let rg = st.strapdown.to_rotation_matrix();
+        st.acc_lp1 = Vec3::select(
+            s.acc_ok,
+            st.acc_lp1 + (a_i - st.acc_lp1) * k_acc,
+            st.acc_lp1,
+        );
+        st.acc_lp = Vec3::select(
+            s.acc_ok,
+            st.acc_lp + (st.acc_lp1 - st.acc_lp) * k_acc,
+            st.acc_lp,
+        );
+        st.rot_lp1 =
+            Mat::from_fn(|i, j| st.rot_lp1.m[i][j] + (rg.m[i][j] - st.rot_lp1.m[i][j]) * k_acc);
+        st.rot_lp = Mat::from_fn(|i, j| {
+            st.rot_lp.m[i][j] + (st.rot_lp1.m[i][j] - st.rot_lp.m[i][j]) * k_acc
+        });
+        tau
+    }
+
+    /// The horizontal rotation vector (earth frame, rad) that turns the low-passed specific
+    /// force, brought to the earth frame by `c`, onto up; false where it has no direction.
+    fn inclination_innovation(&self) -> ([T; 2], T::Mask) {
+        let (zero, one) = (T::zero(), T::one());
+        let (v, v_ok) = self
+            .state
+            .correction
+            .rotate(self.state.acc_lp)
+            .try_normalize();
+        // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
+        let sxy = (v.x * v.x + v.y * v.y).sqrt();
+        let angle = sxy.atan2(v.z);
+        let scale = T::select(
+            sxy.simd_gt(zero),
+            angle / T::select(sxy.simd_gt(zero), sxy, one),
+            one,
+        );
+        ([v.y * scale, -v.x * scale], v_ok)
+    }
+
+    /// Gyro-bias step detection by innovation consistency: a bias step makes the strapdown
+    /// frame drift, and the inclination corrections then chase a persistent, one-signed
+    /// innovation, while a consistent filter's innovations average out. The running mean of
+    /// the innovation (time constant `bias_step_window`) is compared with what white
+    /// innovations of density `acc_noise²` leave in it; beyond `bias_step_gate` standard
+    /// deviations the next time update re-inflates the bias covariance by `init_bias_std`,
+    /// and the lag-aware inclination measurement (`H` contains `τ·R̄`) then learns the new
+    /// bias within seconds rather than at the random-walk rate. Not during start-up.
+    fn detect_bias_step(
+        &mut self,
+        s: &Screened<T>,
+        starting: T::Mask,
+        (eps, ok): ([T; 2], T::Mask),
+    ) {
+        let c = &self.coef;
+        let st = &mut self.state;
+        // Disabled in every lane (the default): the running means are read nowhere else.
+        if !c.bias_step_threshold.simd_gt(T::zero()).any() {
+            st.bias_step = <T::Mask as Mask>::splat(false);
+            return;
+        }
+        let use_it = s.acc_ok & ok & !starting;
+        let k = lowpass_gain(s.dt, c.bias_step_window);
+        let mx = st.innovation_mean_x + (eps[0] - st.innovation_mean_x) * k;
+        let my = st.innovation_mean_y + (eps[1] - st.innovation_mean_y) * k;
+        let step = use_it
+            & c.bias_step_threshold.simd_gt(T::zero())
+            & (mx * mx + my * my).simd_gt(c.bias_step_threshold);
+        // After a detection the mean starts again from zero, so one step inflates once per
+        // window at most.
+        let zero = T::zero();
+        st.innovation_mean_x = T::select(step, zero, T::select(use_it, mx, st.innovation_mean_x));
+        st.innovation_mean_y = T::select(step, zero, T::select(use_it, my, st.innovation_mean_y));
+        st.bias_step = step;
+    }
+
+    /// Per lane: the last sample detected a gyro-bias step (see [`SqrtEskfParams::bias_step_gate`]).
+    pub fn bias_step_detected(&self) -> T::Mask {
+        self.state.bias_step
+    }
+
+    /// Inclination: two sequential scalar updates on the horizontal error components.
+    /// The low-passed vector measures δθ + τ·R̄·δb with R̄ = R(c)·LP(R(q_strapdown)): the
+    /// exponential average of the drift ∫R·δb over the window has weight e^{−v/τ} at lag v.
+    /// The second component's innovation is the first's residual to first order
+    /// (`ε_y − δθ_y` of the first correction): the measurement is linearised once per sample,
+    /// and the correction is injected once ([`Correction`]), which is what keeps the
+    /// per-sample chain of dependent square roots and rotations short.
+    fn correct_inclination(
+        &mut self,
+        s: &Screened<T>,
+        tau: T,
+        starting: T::Mask,
+        (eps, v_ok): ([T; 2], T::Mask),
+    ) -> Correction<T> {
+        let zero = T::zero();
+        let r_nominal = self.per_dt.r_acc;
+        // Covariance matching: where the innovations have been larger than predicted, the
+        // measurement variance grows by that ratio (bits unchanged where disabled).
+        let adapt = self.coef.acc_adapt_window.simd_gt(zero);
+        let scale = self
+            .state
+            .innovation_nis
+            .max(T::one())
+            .min(T::from_f64(1000.0));
+        let r_acc = T::select(adapt, r_nominal * scale, r_nominal);
+        let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
+        let rc = self.state.correction.to_rotation_matrix();
+        let rbar = rc * self.state.rot_lp;
+        let apply = s.acc_ok & v_ok;
+        let row = |axis: usize| {
+            let mut h = [zero; 6];
+            h[axis] = T::one();
+            for k in 0..3 {
+                h[3 + k] = tau * rbar.m[axis][k];
+            }
+            h
+        };
+        let (dx0, accepted0, alpha0) = self.scalar_update::<0>(row(0), eps[0], r_acc, gate, apply);
+        let nu1 = eps[1] - dx0[1];
+        let (dx1, accepted1, alpha1) = self.scalar_update::<1>(row(1), nu1, r_acc, gate, apply);
+        if adapt.any() {
+            // Each innovation against its variance predicted with the nominal noise.
+            let nominal = |alpha: T| alpha - r_acc + r_nominal;
+            let nis = (eps[0] * eps[0] / nominal(alpha0) + nu1 * nu1 / nominal(alpha1))
+                * T::from_f64(0.5);
+            let k = self.per_dt.k_adapt;
+            let m = self.state.innovation_nis;
+            let learn = adapt & apply & !starting & nis.is_finite();
+            self.state.innovation_nis = T::select(learn, m + (nis - m) * k, m);
+        }
+        let accepted = accepted0 | accepted1;
+        let gated = apply & !accepted;
+        self.rejections.gate(gated);
+        // Only an accepted measurement ends a rejection period; a sample without a usable
+        // accelerometer holds the timer (resetting it let a spike or a dropped sample postpone
+        // the re-acquisition by up to `acc_reject_time`).
+        let t = self.state.acc_rejected_time;
+        self.state.acc_rejected_time = T::select(gated, t + s.dt, T::select(apply, zero, t));
+        Correction {
+            dx: core::array::from_fn(|i| dx0[i] + dx1[i]),
+            accepted,
+        }
+    }
+
+    /// Bias at rest: the low-passed gyro measures `b` directly, one scalar update per
+    /// component against the bias as corrected so far (`b̂ + δb` of `correction`: the
+    /// measurement is linear, so this is exact), added to `correction`.
+    fn correct_bias_at_rest(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
+        // Every lane not at rest discards these updates: skipping them when no lane is at
+        // rest changes no result.
+        if !rest.any() {
+            return;
+        }
+        self.rest_axis::<3>(rest, correction);
+        self.rest_axis::<4>(rest, correction);
+        self.rest_axis::<5>(rest, correction);
+    }
+
+    /// The at-rest measurement of bias component `STATE − 3` (`H = e_STATE`).
+    fn rest_axis<const STATE: usize>(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
+        let mut h = [T::zero(); 6];
+        h[STATE] = T::one();
+        let k = STATE - 3;
+        let z = self.state.rest_gyr_lp.to_array()[k]
+            - (self.state.bias.to_array()[k] + correction.dx[STATE]);
+        let r_rest = self.per_dt.r_rest;
+        let (dx, accepted, _) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
+        for (total, d) in correction.dx.iter_mut().zip(dx) {
+            *total += d;
+        }
+        correction.accepted |= accepted;
+    }
+
+    /// Heading offset from the magnetometer (9D): disturbance detection against the learned
+    /// field reference, re-acquisition of a new field, and the scalar heading update.
+    fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T, fresh: T::Mask) {
+        let zero = T::zero();
+        let one = T::one();
+        let dt = s.dt;
+        let c = &self.coef;
+        self.state.heading_offset_var +=
+            (c.heading_walk_var + c.heading_rate_var * w.norm_squared()) * dt + heading_growth;
+        let q6 = self.quat6();
+        let h = q6.rotate(s.mag);
+        let dip = (-h.z).clamp(-one, one).asin();
+        let f = self.state.field;
+        let norm = s.mag_norm;
+        let matches = |rn: T, rd: T| {
+            (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
+        };
+        let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
+        let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
+        let k_ref = self.per_dt.k_ref;
+        let mut nf = f;
+        nf.candidate_norm = T::select(
+            ok_cand,
+            f.candidate_norm + (norm - f.candidate_norm) * k_ref,
+            norm,
+        );
+        nf.candidate_dip = T::select(
+            ok_cand,
+            f.candidate_dip + (dip - f.candidate_dip) * k_ref,
+            dip,
+        );
+        nf.candidate_time = T::select(ok_cand, f.candidate_time + dt, zero);
+        nf.norm = T::select(ok_ref, f.norm + (norm - f.norm) * k_ref, f.norm);
+        nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
+        let rejected = s.mag_ok & !ok_ref;
+        nf.rejected_time = T::select(rejected, f.rejected_time + dt, zero);
+        // Re-acquisition: a candidate stable for mag_new_time, or any stable candidate
+        // (≥ rest_time) once rejection has lasted mag_reject_time.
+        let adopt = rejected
+            & (nf.candidate_time.simd_ge(c.mag_new_time)
+                | (nf.rejected_time.simd_ge(c.mag_reject_time)
+                    & nf.candidate_time.simd_ge(c.rest_time)));
+        nf.norm = T::select(adopt, nf.candidate_norm, nf.norm);
+        nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
+        nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
+        let use_mag = (ok_ref | adopt) & s.mag_ok;
+        self.state.field = Select::select(s.mag_ok, &nf, &f);
+        self.state.mag_disturbed = rejected & !adopt;
+        self.rejections.reject_field(self.state.mag_disturbed);
+
+        let st = &mut self.state;
+        // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
+        // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
+        let (psi6, psi_ok) = field_heading_error(h);
+        let psi = (psi6 - st.heading_offset).wrap_pi();
+        let r_mag = self.per_dt.r_mag;
+        let alpha = st.heading_offset_var + r_mag;
+        let k = st.heading_offset_var / alpha;
+        let apply = use_mag & psi_ok & !fresh;
+        st.heading_offset = T::select(
+            apply,
+            (st.heading_offset + k * psi).wrap_pi(),
+            st.heading_offset,
+        );
+        st.heading_offset_var = T::select(
+            apply,
+            st.heading_offset_var * (one - k),
+            st.heading_offset_var,
+        );
+    }
+}
+
+/// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
+fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
+    let mut v = T::zero();
+    for x in s.m[i] {
+        v += x * x;
+    }
+    v
+}
+
+impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
+    fn update(&mut self, sample: &ImuSample<T>, dt: T) {
+        let mut s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        // A spike is an unusable accelerometer sample from here on: every low-pass, detector
+        // and correction below takes the accelerometer only where `acc_ok`.
+        let spike = self.acc_spike(&s);
+        s.acc_ok &= !spike;
+        self.rejections.gate(spike);
+        self.per_dt.refresh(s.dt, &self.coef);
+        // Lanes that cannot step keep their whole state; lanes not yet initialised integrate
+        // the gyroscope (strapdown only) until the first usable accelerometer sample. When
+        // every lane steps from a running state there is nothing to restore, and the state
+        // is not copied.
+        let before = if (s.step & self.state.initialized).all() {
+            None
+        } else {
+            Some(self.state)
+        };
+        let acc_raw = s.acc * s.acc_norm;
+        let fresh = self.initialise(&s, acc_raw);
+        let rest = self.detect_rest(&s, acc_raw);
+        let (w, heading_growth, starting) = self.propagate(&s);
+        let tau = self.lowpass_acc(&s, acc_raw);
+        let innovation = self.inclination_innovation();
+        self.detect_bias_step(&s, starting, innovation);
+        let mut correction = self.correct_inclination(&s, tau, starting, innovation);
+        self.correct_bias_at_rest(rest, &mut correction);
+        self.inject(correction);
+        if self.nine_d {
+            self.correct_heading(&s, w, heading_growth, fresh);
+        }
+        if let Some(before) = before {
+            let keep = s.step & (before.initialized | self.state.initialized);
+            let strapdown = self.state.strapdown;
+            self.state = Select::select(keep, &self.state, &before);
+            let integrating = s.step & !self.state.initialized;
+            self.state.strapdown = Quat::select(integrating, strapdown, self.state.strapdown);
+        }
+    }
+    fn set_quat(&mut self, q: Quat<T>) {
+        // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`. A running
+        // filter keeps `c` and moves the strapdown frame, so that the low-passed specific
+        // force, kept in the quasi-inertial frame, still points along gravity there; a filter
+        // that has not started yet starts from `q` instead of the first accelerometer sample.
+        let q = q.normalize();
+        let st = &mut self.state;
+        let moved = (st.correction.conj() * q).normalize();
+        let running = st.initialized;
+        st.strapdown = Quat::select(running, moved, Quat::identity());
+        st.correction = Quat::select(running, st.correction, q);
+        let r = st.strapdown.to_rotation_matrix();
+        st.rot_lp = Mat::select(running, &r, &st.rot_lp);
+        st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
+        st.heading_offset = T::zero();
+        st.preset |= !running;
+        // A plain preset starts from the initial covariance.
+        st.preset_covariance &= running;
+    }
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.state.bias = bias;
+        true
+    }
+    fn quat(&self) -> Quat<T> {
+        if self.nine_d {
+            self.quat9()
+        } else {
+            self.quat6()
+        }
+    }
+    fn bias(&self) -> Vec3<T> {
+        self.state.bias
+    }
+    fn rejections(&self) -> &Rejections<T> {
+        &self.rejections
+    }
+    fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
+        Some(SqrtEskf::attitude_covariance(self))
+    }
+    fn rest_detected(&self) -> Option<T::Mask> {
+        Some(self.at_rest())
+    }
+    fn magnetic_disturbance(&self) -> Option<T::Mask> {
+        Some(self.mag_disturbed())
+    }
+}
