@@ -176,6 +176,32 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
     } else {
         Alignment::NineD
     };
+    let pairs = file_pairs(args)?;
+    let mut rows = Vec::new();
+    for (name, t, e) in &pairs {
+        rows.push(Scored {
+            name: name.clone(),
+            ..score(t, e, align, args)?
+        });
+    }
+    let n = rows.len() as f64;
+    let mean = |f: fn(&Rmse) -> f64| rows.iter().map(|s| f(&s.rmse)).sum::<f64>() / n;
+    let (mt, mh, mi) = (
+        mean(|r| r.total),
+        mean(|r| r.heading),
+        mean(|r| r.inclination),
+    );
+    if args.json {
+        print_json(&rows, (mt, mh, mi));
+    } else {
+        print_tables(&rows, (mt, mh, mi), args);
+    }
+    Ok(())
+}
+
+/// The (name, truth, estimate) files to score: one pair, or every estimate in a folder with
+/// its truth file of the same name (every truth file must have an estimate).
+fn file_pairs(args: &EvalArgs) -> Result<Vec<(String, PathBuf, PathBuf)>, String> {
     let mut pairs: Vec<(String, PathBuf, PathBuf)> = Vec::new();
     match (&args.truth, &args.est, &args.truth_dir, &args.est_dir) {
         (Some(t), Some(e), None, None) => pairs.push((stem(e), t.clone(), e.clone())),
@@ -201,115 +227,107 @@ pub fn run(args: &EvalArgs) -> Result<(), String> {
         }
         _ => return Err("give TRUTH EST, or --truth-dir D --est-dir E".into()),
     }
-    let mut rows = Vec::new();
-    for (name, t, e) in &pairs {
-        rows.push(Scored {
-            name: name.clone(),
-            ..score(t, e, align, args)?
-        });
-    }
-    let n = rows.len() as f64;
-    let mean = |f: fn(&Rmse) -> f64| rows.iter().map(|s| f(&s.rmse)).sum::<f64>() / n;
-    let (mt, mh, mi) = (
-        mean(|r| r.total),
-        mean(|r| r.heading),
-        mean(|r| r.inclination),
-    );
-    if args.json {
-        let files: Vec<serde_json::Value> = rows
-            .iter()
-            .map(|s| {
-                let r = &s.rmse;
-                let mut file = serde_json::json!({
-                    "name": s.name,
-                    "total": r.total,
-                    "heading": r.heading,
-                    "inclination": r.inclination,
-                });
-                if let Some(a) = &s.alignment {
-                    file["align"] = alignment_json(a);
-                }
-                if let Some(c) = &s.consistency {
-                    file["consistency"] = serde_json::json!({
-                        "nees_total": c.nees_total,
-                        "coverage_total": c.coverage_total,
-                        "nees_inclination": c.nees_inclination,
-                        "coverage_inclination": c.coverage_inclination,
-                        "n_used": c.n_used,
-                        "n_invalid": c.n_invalid,
-                    });
-                }
-                file
-            })
-            .collect();
-        let json = serde_json::json!({
-            "files": files,
-            "mean": { "total": mt, "heading": mh, "inclination": mi },
-        });
-        out!("{json}");
-    } else {
-        out!("| file | total (deg) | heading (deg) | inclination (deg) |");
-        out!("|---|---|---|---|");
-        for s in &rows {
+    Ok(pairs)
+}
+
+/// The scores as one JSON document: per file, and the mean `(total, heading, inclination)`.
+fn print_json(rows: &[Scored], (mt, mh, mi): (f64, f64, f64)) {
+    let files: Vec<serde_json::Value> = rows
+        .iter()
+        .map(|s| {
             let r = &s.rmse;
-            out!(
-                "| {} | {:.3} | {:.3} | {:.3} |",
-                s.name,
-                r.total,
-                r.heading,
-                r.inclination
-            );
-        }
-        if rows.len() > 1 {
-            out!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
-        }
-        if args.consistency {
-            out!(
-                "\ncovariance (after the first {:.0} % of each file, floor {}°): 1 and 95 % when honest",
-                CONSISTENCY_SKIP * 100.0,
-                args.floor
-            );
-            out!("| file | NEES/3 | inside 95 % | inclination NEES/2 | inside 95 % |");
-            out!("|---|---|---|---|---|");
-            for s in &rows {
-                if let Some(c) = &s.consistency {
-                    out!(
-                        "| {} | {:.2} | {:.1} % | {:.2} | {:.1} % |",
-                        s.name,
-                        c.nees_total,
-                        100.0 * c.coverage_total,
-                        c.nees_inclination,
-                        100.0 * c.coverage_inclination
-                    );
-                }
+            let mut file = serde_json::json!({
+                "name": s.name,
+                "total": r.total,
+                "heading": r.heading,
+                "inclination": r.inclination,
+            });
+            if let Some(a) = &s.alignment {
+                file["align"] = alignment_json(a);
             }
-        }
-        if args.align {
-            out!("\naligned (estimate in the truth's frames = earth ⊗ q ⊗ sensor_to_body*):");
-            out!(
-                "| file | truth vertical | earth offset (deg, about axis) | sensor to body (deg, about axis) | outliers | median error (deg) |"
-            );
-            out!("|---|---|---|---|---|---|");
-            for s in &rows {
-                if let Some(a) = &s.alignment {
-                    let v = a.vertical;
-                    out!(
-                        "| {} | [{:.3}, {:.3}, {:.3}] | {} | {} | {} of {} | {:.3} |",
-                        s.name,
-                        v.x,
-                        v.y,
-                        v.z,
-                        axis_angle(a.earth),
-                        axis_angle(a.sensor_to_body),
-                        a.n_downweighted,
-                        a.n_used,
-                        a.median_error_deg
-                    );
-                }
+            if let Some(c) = &s.consistency {
+                file["consistency"] = serde_json::json!({
+                    "nees_total": c.nees_total,
+                    "coverage_total": c.coverage_total,
+                    "nees_inclination": c.nees_inclination,
+                    "coverage_inclination": c.coverage_inclination,
+                    "n_used": c.n_used,
+                    "n_invalid": c.n_invalid,
+                });
+            }
+            file
+        })
+        .collect();
+    let json = serde_json::json!({
+        "files": files,
+        "mean": { "total": mt, "heading": mh, "inclination": mi },
+    });
+    out!("{json}");
+}
+
+/// The scores as Markdown tables: RMSE per file and mean, then the covariance's consistency
+/// and the alignment where asked for.
+fn print_tables(rows: &[Scored], (mt, mh, mi): (f64, f64, f64), args: &EvalArgs) {
+    out!("| file | total (deg) | heading (deg) | inclination (deg) |");
+    out!("|---|---|---|---|");
+    for s in rows {
+        let r = &s.rmse;
+        out!(
+            "| {} | {:.3} | {:.3} | {:.3} |",
+            s.name,
+            r.total,
+            r.heading,
+            r.inclination
+        );
+    }
+    if rows.len() > 1 {
+        out!("| mean | {mt:.3} | {mh:.3} | {mi:.3} |");
+    }
+    if args.consistency {
+        out!(
+            "\ncovariance (after the first {:.0} % of each file, floor {}°): 1 and 95 % when honest",
+            CONSISTENCY_SKIP * 100.0,
+            args.floor
+        );
+        out!("| file | NEES/3 | inside 95 % | inclination NEES/2 | inside 95 % |");
+        out!("|---|---|---|---|---|");
+        for s in rows {
+            if let Some(c) = &s.consistency {
+                out!(
+                    "| {} | {:.2} | {:.1} % | {:.2} | {:.1} % |",
+                    s.name,
+                    c.nees_total,
+                    100.0 * c.coverage_total,
+                    c.nees_inclination,
+                    100.0 * c.coverage_inclination
+                );
             }
         }
     }
-    Ok(())
+    if args.align {
+        out!("\naligned (estimate in the truth's frames = earth ⊗ q ⊗ sensor_to_body*):");
+        out!(
+            "| file | truth vertical | earth offset (deg, about axis) | sensor to body (deg, about axis) | outliers | median error (deg) |"
+        );
+        out!("|---|---|---|---|---|---|");
+        for s in rows {
+            if let Some(a) = &s.alignment {
+                let v = a.vertical;
+                out!(
+                    "| {} | [{:.3}, {:.3}, {:.3}] | {} | {} | {} of {} | {:.3} |",
+                    s.name,
+                    v.x,
+                    v.y,
+                    v.z,
+                    axis_angle(a.earth),
+                    axis_angle(a.sensor_to_body),
+                    a.n_downweighted,
+                    a.n_used,
+                    a.median_error_deg
+                );
+            }
+        }
+    }
 }
 
 /// `angle° about [x, y, z]` of a rotation.

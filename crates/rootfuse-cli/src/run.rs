@@ -109,53 +109,9 @@ pub struct RunArgs {
 /// Runs the command.
 pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     let spec = args.filter.spec()?;
-    if args.covariance && spec.build::<f64>().attitude_covariance().is_none() {
-        return Err(format!(
-            "--covariance: filter `{}` carries no covariance (sqrt-eskf and ekf do)",
-            args.filter.filter
-        ));
-    }
-    if args.offline {
-        if args.bias || args.covariance || args.flags {
-            return Err(
-                "--offline writes orientations only (no --bias, --covariance, --flags)".into(),
-            );
-        }
-        if spec.build::<f64>().attitude_covariance().is_none() {
-            return Err(format!(
-                "--offline: filter `{}` carries no covariance to weight the two passes (sqrt-eskf and ekf do)",
-                args.filter.filter
-            ));
-        }
-    }
+    check_filter_options(args, &spec)?;
     let files = input_files(&args.inputs)?;
-    let columnar = files
-        .iter()
-        .any(|f| Format::of_path(f).is_some_and(|x| x != Format::Csv));
-    if columnar
-        && files
-            .iter()
-            .any(|f| Format::of_path(f) == Some(Format::Csv))
-    {
-        return Err(
-            "give CSV recordings or Parquet/Arrow fleets in one run, not both (their devices are told apart differently)"
-                .into(),
-        );
-    }
-    if args.offline && args.format.is_some_and(|f| f != FormatArg::Csv) {
-        return Err("--offline writes CSV estimates".into());
-    }
-    if columnar && args.offline {
-        return Err("--offline reads CSV recordings (it needs each recording whole in memory); write a fleet's devices to CSV files to smooth them".into());
-    }
-    let format = match args.format {
-        Some(f) => f.into(),
-        None if columnar => files
-            .first()
-            .and_then(|f| Format::of_path(f))
-            .unwrap_or(Format::Parquet),
-        None => Format::Csv,
-    };
+    let (format, columnar) = output_format(args, &files)?;
     let outputs_of_files = output_paths(&files, &args.out, format)?;
     let mut ledger = Ledger::load(&args.out);
     for (file, out) in files.iter().zip(&outputs_of_files) {
@@ -238,7 +194,73 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             return Err(e);
         }
     };
-    let seconds = start.elapsed().as_secs_f64();
+    Ok(report(args, &totals, start.elapsed().as_secs_f64()))
+}
+
+/// `--covariance` and `--offline` need a filter with a covariance; `--offline` writes
+/// orientations only.
+fn check_filter_options(
+    args: &RunArgs,
+    spec: &rootfuse_attitude::registry::FilterSpec,
+) -> Result<(), String> {
+    if args.covariance && spec.build::<f64>().attitude_covariance().is_none() {
+        return Err(format!(
+            "--covariance: filter `{}` carries no covariance (sqrt-eskf and ekf do)",
+            args.filter.filter
+        ));
+    }
+    if args.offline {
+        if args.bias || args.covariance || args.flags {
+            return Err(
+                "--offline writes orientations only (no --bias, --covariance, --flags)".into(),
+            );
+        }
+        if spec.build::<f64>().attitude_covariance().is_none() {
+            return Err(format!(
+                "--offline: filter `{}` carries no covariance to weight the two passes (sqrt-eskf and ekf do)",
+                args.filter.filter
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The format of the estimates and whether the inputs are columnar fleets (Parquet/Arrow):
+/// CSV and fleets are not mixed in one run, and `--offline` reads and writes CSV only.
+fn output_format(args: &RunArgs, files: &[PathBuf]) -> Result<(Format, bool), String> {
+    let columnar = files
+        .iter()
+        .any(|f| Format::of_path(f).is_some_and(|x| x != Format::Csv));
+    if columnar
+        && files
+            .iter()
+            .any(|f| Format::of_path(f) == Some(Format::Csv))
+    {
+        return Err(
+            "give CSV recordings or Parquet/Arrow fleets in one run, not both (their devices are told apart differently)"
+                .into(),
+        );
+    }
+    if args.offline && args.format.is_some_and(|f| f != FormatArg::Csv) {
+        return Err("--offline writes CSV estimates".into());
+    }
+    if columnar && args.offline {
+        return Err("--offline reads CSV recordings (it needs each recording whole in memory); write a fleet's devices to CSV files to smooth them".into());
+    }
+    let format = match args.format {
+        Some(f) => f.into(),
+        None if columnar => files
+            .first()
+            .and_then(|f| Format::of_path(f))
+            .unwrap_or(Format::Parquet),
+        None => Format::Csv,
+    };
+    Ok((format, columnar))
+}
+
+/// The closing lines of a run (files, samples, speed, rejections, missing values, failures)
+/// and its outcome.
+fn report(args: &RunArgs, totals: &Totals, seconds: f64) -> Outcome {
     let samples = totals.samples;
     out!(
         "{} file(s), {samples} samples, {:.3e} samples/s ({}), estimates in {}",
@@ -251,7 +273,7 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
         },
         args.out.display()
     );
-    let r = totals.rejections;
+    let r = &totals.rejections;
     out!(
         "rejected: dt {}, gyro {}, accelerometer {}, magnetometer {}, gated {}, magnetic disturbance {}",
         r.dt,
@@ -273,9 +295,9 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             "{} file(s) failed, {} device(s) failed",
             totals.failed_files, totals.failed_devices
         );
-        Ok(Outcome::Partial)
+        Outcome::Partial
     } else {
-        Ok(Outcome::Success)
+        Outcome::Success
     }
 }
 

@@ -116,39 +116,7 @@ pub fn run_csv(
     staged: &mut StagedFiles,
 ) -> Result<Totals, String> {
     let mut totals = Totals::default();
-    // File `i` is device `i`, named after its stem: with `--device-params` every file gets
-    // its spec up front (the table's, or the run's).
-    let file_specs: Vec<FilterSpec> = match job.device_specs {
-        Some(table) => files
-            .iter()
-            .map(|f| {
-                let stem = f
-                    .file_stem()
-                    .map(|s| s.to_string_lossy())
-                    .unwrap_or_default();
-                table.get(&stem).unwrap_or(job.spec).clone()
-            })
-            .collect(),
-        None => Vec::new(),
-    };
-    if let Some(table) = job.device_specs {
-        let stems: Vec<String> = files
-            .iter()
-            .map(|f| {
-                f.file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default()
-            })
-            .collect();
-        let unseen: Vec<&str> = table
-            .labels
-            .iter()
-            .filter(|l| !stems.contains(l))
-            .map(String::as_str)
-            .collect();
-        let listed = stems.iter().filter(|s| table.get(s).is_some()).count();
-        table.report(files.len() - listed, &unseen);
-    }
+    let file_specs = csv_file_specs(job, files);
     let mut runner = fleet_runner(job, &file_specs)?;
     let names = estimate_names(job.columns, runner_has_covariance(job));
     // A block of all files together stays about BLOCK_ROWS rows (at least 2 per file, so
@@ -156,32 +124,7 @@ pub fn run_csv(
     let rows_per_file = (BLOCK_ROWS / files.len().max(1)).max(256);
     let mut inputs: Vec<CsvInput> = Vec::new();
     for (i, (file, out)) in files.iter().zip(outs).enumerate() {
-        let opened = (|| -> Result<CsvInput, String> {
-            let mut blocks = CsvBlocks::open(file, job.gaps)
-                .map_err(|e| e.to_string())?
-                .with_units(job.units);
-            let mut buffer = blocks.empty_recording();
-            if blocks
-                .read_into(&mut buffer, rows_per_file)
-                .map_err(|e| e.to_string())?
-                == 0
-            {
-                return Err(format!(
-                    "{}: line 2: no data rows (the file has only a header)",
-                    file.display()
-                ));
-            }
-            check_mag(job, file, blocks.has_mag())?;
-            let writer =
-                EstimateWriter::create(out, job.format, None, &names).map_err(|e| e.to_string())?;
-            Ok(CsvInput {
-                blocks,
-                buffer,
-                writer,
-                device: i as u32,
-                missing_imu: 0,
-            })
-        })();
+        let opened = open_csv_input(job, file, out, i as u32, rows_per_file, &names);
         match opened {
             Ok(input) => inputs.push(input),
             Err(e) => totals.fail(e, job.keep_going)?,
@@ -260,6 +203,82 @@ pub fn run_csv(
         inputs = still;
     }
     Ok(totals)
+}
+
+/// The filter of each CSV file under `--device-params` (file `i` is device `i`, named after
+/// its stem; none without a table), after reporting the table's rows and files that did not
+/// meet.
+fn csv_file_specs(job: &Job, files: &[PathBuf]) -> Vec<FilterSpec> {
+    // File `i` is device `i`, named after its stem: with `--device-params` every file gets
+    // its spec up front (the table's, or the run's).
+    let file_specs: Vec<FilterSpec> = match job.device_specs {
+        Some(table) => files
+            .iter()
+            .map(|f| {
+                let stem = f
+                    .file_stem()
+                    .map(|s| s.to_string_lossy())
+                    .unwrap_or_default();
+                table.get(&stem).unwrap_or(job.spec).clone()
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    if let Some(table) = job.device_specs {
+        let stems: Vec<String> = files
+            .iter()
+            .map(|f| {
+                f.file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default()
+            })
+            .collect();
+        let unseen: Vec<&str> = table
+            .labels
+            .iter()
+            .filter(|l| !stems.contains(l))
+            .map(String::as_str)
+            .collect();
+        let listed = stems.iter().filter(|s| table.get(s).is_some()).count();
+        table.report(files.len() - listed, &unseen);
+    }
+    file_specs
+}
+
+/// Opens CSV recording `file` as device `device`: its first block read (a file with only a
+/// header is an error), the magnetometer checked against the run, the estimate writer created.
+fn open_csv_input(
+    job: &Job,
+    file: &Path,
+    out: &Path,
+    device: u32,
+    rows_per_file: usize,
+    names: &[&str],
+) -> Result<CsvInput, String> {
+    let mut blocks = CsvBlocks::open(file, job.gaps)
+        .map_err(|e| e.to_string())?
+        .with_units(job.units);
+    let mut buffer = blocks.empty_recording();
+    if blocks
+        .read_into(&mut buffer, rows_per_file)
+        .map_err(|e| e.to_string())?
+        == 0
+    {
+        return Err(format!(
+            "{}: line 2: no data rows (the file has only a header)",
+            file.display()
+        ));
+    }
+    check_mag(job, file, blocks.has_mag())?;
+    let writer =
+        EstimateWriter::create(out, job.format, None, names).map_err(|e| e.to_string())?;
+    Ok(CsvInput {
+        blocks,
+        buffer,
+        writer,
+        device,
+        missing_imu: 0,
+    })
 }
 
 /// Whether the estimate has covariance columns: the filter must carry one.

@@ -348,27 +348,11 @@ pub fn solve<T: LsqReal>(
     });
     white.apply(sys.as_mut());
 
-    let mut scale = vec![T::one_impl(); n];
-    if options.equilibrate {
-        for (j, s) in scale.iter_mut().enumerate() {
-            // The nearest power of two: scaling by it is exact, so the equilibrated problem is
-            // the given problem, not a rounded neighbour of it.
-            let norm = sys.as_ref().col(j).norm_l2().to_f64();
-            let pow2 = T::from_f64(2f64.powi(norm.log2().round() as i32));
-            let inv = T::one_impl() / pow2;
-            if norm > 0.0
-                && pow2.is_finite()
-                && pow2 > T::zero_impl()
-                && inv.is_finite()
-                && inv > T::zero_impl()
-            {
-                *s = pow2;
-                for i in 0..m {
-                    sys[(i, j)] *= inv;
-                }
-            }
-        }
-    }
+    let scale = if options.equilibrate {
+        equilibrate(&mut sys, n)
+    } else {
+        vec![T::one_impl(); n]
+    };
     let a = sys.as_ref().get(.., ..n);
     let b = sys.as_ref().col(n);
     let tol = options
@@ -411,24 +395,7 @@ pub fn solve<T: LsqReal>(
         RSquaredKind::Auto => RSquaredKind::Uncentred,
         k => k,
     };
-    let b = sys.as_ref().col(n);
-    let tss = match kind {
-        RSquaredKind::Centred => {
-            let o = sys.as_ref().col(n + 1);
-            let oo = sum_sq((0..m).map(|i| o[i]));
-            let mut ob = T::zero_impl();
-            for i in 0..m {
-                ob += o[i] * b[i];
-            }
-            let mean = if oo > T::zero_impl() {
-                ob / oo
-            } else {
-                T::zero_impl()
-            };
-            sum_sq((0..m).map(|i| b[i] - mean * o[i]))
-        }
-        _ => sum_sq((0..m).map(|i| b[i])),
-    };
+    let tss = total_sum_of_squares(&sys, n, kind);
     let r_squared = (tss > T::zero_impl()).then(|| T::one_impl() - rss / tss);
 
     Ok(LsqSolution {
@@ -444,6 +411,57 @@ pub fn solve<T: LsqReal>(
         rank: f.rank,
         method: options.method,
     })
+}
+
+/// Scales each of the first `n` columns of `sys` by the power of two nearest its 2-norm's
+/// inverse and returns the scales (1 for a zero column or one whose scale is not finite).
+fn equilibrate<T: LsqReal>(sys: &mut Mat<T>, n: usize) -> Vec<T> {
+    let m = sys.nrows();
+    let mut scale = vec![T::one_impl(); n];
+    for (j, s) in scale.iter_mut().enumerate() {
+        // The nearest power of two: scaling by it is exact, so the equilibrated problem is
+        // the given problem, not a rounded neighbour of it.
+        let norm = sys.as_ref().col(j).norm_l2().to_f64();
+        let pow2 = T::from_f64(2f64.powi(norm.log2().round() as i32));
+        let inv = T::one_impl() / pow2;
+        if norm > 0.0
+            && pow2.is_finite()
+            && pow2 > T::zero_impl()
+            && inv.is_finite()
+            && inv > T::zero_impl()
+        {
+            *s = pow2;
+            for i in 0..m {
+                sys[(i, j)] *= inv;
+            }
+        }
+    }
+    scale
+}
+
+/// The total sum of squares of the whitened observations (column `n` of `sys`): about their
+/// weighted mean (column `n + 1` holds the whitened ones) for the centred R², about zero
+/// otherwise.
+fn total_sum_of_squares<T: LsqReal>(sys: &Mat<T>, n: usize, kind: RSquaredKind) -> T {
+    let b = sys.as_ref().col(n);
+    let m = sys.nrows();
+    match kind {
+        RSquaredKind::Centred => {
+            let o = sys.as_ref().col(n + 1);
+            let oo = sum_sq((0..m).map(|i| o[i]));
+            let mut ob = T::zero_impl();
+            for i in 0..m {
+                ob += o[i] * b[i];
+            }
+            let mean = if oo > T::zero_impl() {
+                ob / oo
+            } else {
+                T::zero_impl()
+            };
+            sum_sq((0..m).map(|i| b[i] - mean * o[i]))
+        }
+        _ => sum_sq((0..m).map(|i| b[i])),
+    }
 }
 
 fn sum_sq<T: LsqReal>(it: impl Iterator<Item = T>) -> T {

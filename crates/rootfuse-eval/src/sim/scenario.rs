@@ -183,23 +183,7 @@ pub fn scenario_simulation(
     duration_s: f64,
     rate_hz: f64,
 ) -> Result<Simulation, SimError> {
-    if !(duration_s.is_finite() && duration_s > 0.0) {
-        return Err(SimError::InvalidParameter {
-            name: "duration_s",
-            value: duration_s,
-        });
-    }
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(SimError::InvalidParameter {
-            name: "rate_hz",
-            value: rate_hz,
-        });
-    }
-    let samples = duration_s * rate_hz;
-    // Two finite inputs can still overflow to infinity; that is caught here too.
-    if samples.is_nan() || samples > MAX_SAMPLES as f64 {
-        return Err(SimError::TooManySamples { samples });
-    }
+    check_size(duration_s, rate_hz)?;
 
     let r = &mut rng(seed, STREAM_SETUP);
     let d = duration_s;
@@ -228,94 +212,12 @@ pub fn scenario_simulation(
     let up = q0.rotate_inverse(Vec3::new(0.0, 0.0, 1.0));
     let segments = match base {
         "static" => vec![Segment::rest(d)],
-        "pendulum" => {
-            let motion = pieces_of(r, 0.8 * d, 10.0, |r, t| {
-                let freq = uniform(r, 0.3, 1.0);
-                let amplitude = uniform(r, 30.0, 70.0).to_radians();
-                let heading = uniform(r, 0.0, 2.0 * PI);
-                let axis = q0.rotate_inverse(Vec3::new(heading.cos(), heading.sin(), 0.0));
-                // The length of a simple pendulum of that frequency, hanging below the pivot.
-                let length = GRAVITY / (2.0 * PI * freq).powi(2);
-                Segment::swing(t, axis, amplitude, freq, up * -length)
-            });
-            framed(d, 0.1, 0.1, motion)
-        }
-        "vehicle" => {
-            // Forward and left are fixed in the vehicle, so in the sensor frame.
-            let forward = q0.rotate_inverse(Vec3::new(1.0, 0.0, 0.0));
-            let left = up.cross(forward);
-            let constant = |v: Vec3<f64>| Oscillation {
-                amplitude: v,
-                freq_hz: 0.0,
-                phase: Vec3::new(0.5 * PI, 0.5 * PI, 0.5 * PI),
-            };
-            let mut k = 0usize;
-            let motion = pieces_of(r, 0.8 * d, 8.0, |r, t| {
-                k += 1;
-                let (rotation, acc) = if k % 2 == 1 {
-                    // A car's lateral acceleration of 1-4 m/s² (speed = that / rate).
-                    let rate = uniform(r, 0.1, 0.4) * sign(r);
-                    let speed = uniform(r, 1.0, 4.0) / rate.abs();
-                    let mut turn = Segment::rotate(t, up, rate);
-                    if let super::Rotation::ConstantRate { ramp_s, .. } = &mut turn.rotation {
-                        *ramp_s = 0.1;
-                    }
-                    // Toward the centre of the turn: left for a positive (counter-clockwise)
-                    // rate.
-                    (turn, left * (speed * rate))
-                } else {
-                    (Segment::rest(t), forward * (uniform(r, 1.0, 3.0) * sign(r)))
-                };
-                rotation.with_vibration(Vibration {
-                    angle: Vec::new(),
-                    acc: vec![constant(acc)],
-                })
-            });
-            framed(d, 0.1, 0.1, motion)
-        }
-        "handheld-translation" => {
-            let motion = pieces(r, 0.8 * d, |r, t| {
-                let seg = smooth(r, t, 0.3, 0.1, 0.3);
-                seg.with_translation(Oscillation {
-                    amplitude: random_unit(r) * uniform(r, 3.0, 8.0),
-                    freq_hz: uniform(r, 0.5, 2.0),
-                    phase: Vec3::zero(),
-                })
-            });
-            framed(d, 0.1, 0.1, motion)
-        }
+        "pendulum" => pendulum(r, d, q0, up),
+        "vehicle" => vehicle(r, d, q0, up),
+        "handheld-translation" => handheld(r, d),
         "slow-rotation" | "noise-free" => slow(r),
-        "fast-rotation" => {
-            let mut k = 0usize;
-            let motion = pieces(r, 0.8 * d, |r, t| {
-                k += 1;
-                if k % 2 == 1 {
-                    smooth(r, t, 6.0, 0.5, 1.5)
-                } else {
-                    turn(r, t, 3.0, 6.0)
-                }
-            });
-            framed(d, 0.1, 0.1, motion)
-        }
-        "translation" => {
-            let motion = pieces(r, 0.8 * d, |r, t| {
-                let mut seg = smooth(r, t, 0.5, 0.1, 0.3);
-                for _ in 0..2 {
-                    let amp = Vec3::new(
-                        uniform(r, 2.0, 5.0) * sign(r),
-                        uniform(r, 2.0, 5.0) * sign(r),
-                        uniform(r, 1.0, 3.0) * sign(r),
-                    ) * 0.5;
-                    seg = seg.with_translation(Oscillation {
-                        amplitude: amp,
-                        freq_hz: uniform(r, 0.5, 2.0),
-                        phase: random_phase(r),
-                    });
-                }
-                seg
-            });
-            framed(d, 0.1, 0.1, motion)
-        }
+        "fast-rotation" => fast_rotation(r, d),
+        "translation" => translation(r, d),
         "magnetic-disturbance" => {
             let segs = slow(r);
             disturb(r, &mut sensor, d);
@@ -394,6 +296,126 @@ pub fn scenario_simulation(
         timing,
         seed,
     })
+}
+
+/// A positive, finite duration and rate whose product fits [`MAX_SAMPLES`].
+fn check_size(duration_s: f64, rate_hz: f64) -> Result<(), SimError> {
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        return Err(SimError::InvalidParameter {
+            name: "duration_s",
+            value: duration_s,
+        });
+    }
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(SimError::InvalidParameter {
+            name: "rate_hz",
+            value: rate_hz,
+        });
+    }
+    let samples = duration_s * rate_hz;
+    // Two finite inputs can still overflow to infinity; that is caught here too.
+    if samples.is_nan() || samples > MAX_SAMPLES as f64 {
+        return Err(SimError::TooManySamples { samples });
+    }
+    Ok(())
+}
+
+/// Swings of 30–70° at 0.3–1 Hz about horizontal axes, the sensor a pendulum's length below
+/// the pivot (centripetal and tangential acceleration to about 1 g).
+fn pendulum(r: &mut ChaCha8Rng, d: f64, q0: Quat<f64>, up: Vec3<f64>) -> Vec<Segment> {
+    let motion = pieces_of(r, 0.8 * d, 10.0, |r, t| {
+        let freq = uniform(r, 0.3, 1.0);
+        let amplitude = uniform(r, 30.0, 70.0).to_radians();
+        let heading = uniform(r, 0.0, 2.0 * PI);
+        let axis = q0.rotate_inverse(Vec3::new(heading.cos(), heading.sin(), 0.0));
+        // The length of a simple pendulum of that frequency, hanging below the pivot.
+        let length = GRAVITY / (2.0 * PI * freq).powi(2);
+        Segment::swing(t, axis, amplitude, freq, up * -length)
+    });
+    framed(d, 0.1, 0.1, motion)
+}
+
+/// Turns with a car's lateral acceleration and straight stretches of forward acceleration.
+fn vehicle(r: &mut ChaCha8Rng, d: f64, q0: Quat<f64>, up: Vec3<f64>) -> Vec<Segment> {
+    // Forward and left are fixed in the vehicle, so in the sensor frame.
+    let forward = q0.rotate_inverse(Vec3::new(1.0, 0.0, 0.0));
+    let left = up.cross(forward);
+    let constant = |v: Vec3<f64>| Oscillation {
+        amplitude: v,
+        freq_hz: 0.0,
+        phase: Vec3::new(0.5 * PI, 0.5 * PI, 0.5 * PI),
+    };
+    let mut k = 0usize;
+    let motion = pieces_of(r, 0.8 * d, 8.0, |r, t| {
+        k += 1;
+        let (rotation, acc) = if k % 2 == 1 {
+            // A car's lateral acceleration of 1-4 m/s² (speed = that / rate).
+            let rate = uniform(r, 0.1, 0.4) * sign(r);
+            let speed = uniform(r, 1.0, 4.0) / rate.abs();
+            let mut turn = Segment::rotate(t, up, rate);
+            if let super::Rotation::ConstantRate { ramp_s, .. } = &mut turn.rotation {
+                *ramp_s = 0.1;
+            }
+            // Toward the centre of the turn: left for a positive (counter-clockwise)
+            // rate.
+            (turn, left * (speed * rate))
+        } else {
+            (Segment::rest(t), forward * (uniform(r, 1.0, 3.0) * sign(r)))
+        };
+        rotation.with_vibration(Vibration {
+            angle: Vec::new(),
+            acc: vec![constant(acc)],
+        })
+    });
+    framed(d, 0.1, 0.1, motion)
+}
+
+/// Slow rotation with back-and-forth translation of 0.5–2 Hz.
+fn handheld(r: &mut ChaCha8Rng, d: f64) -> Vec<Segment> {
+    let motion = pieces(r, 0.8 * d, |r, t| {
+        let seg = smooth(r, t, 0.3, 0.1, 0.3);
+        seg.with_translation(Oscillation {
+            amplitude: random_unit(r) * uniform(r, 3.0, 8.0),
+            freq_hz: uniform(r, 0.5, 2.0),
+            phase: Vec3::zero(),
+        })
+    });
+    framed(d, 0.1, 0.1, motion)
+}
+
+/// Fast smooth rotation alternating with fast turns.
+fn fast_rotation(r: &mut ChaCha8Rng, d: f64) -> Vec<Segment> {
+    let mut k = 0usize;
+    let motion = pieces(r, 0.8 * d, |r, t| {
+        k += 1;
+        if k % 2 == 1 {
+            smooth(r, t, 6.0, 0.5, 1.5)
+        } else {
+            turn(r, t, 3.0, 6.0)
+        }
+    });
+    framed(d, 0.1, 0.1, motion)
+}
+
+/// Slow rotation with two translations on each piece.
+fn translation(r: &mut ChaCha8Rng, d: f64) -> Vec<Segment> {
+    let motion = pieces(r, 0.8 * d, |r, t| {
+        let mut seg = smooth(r, t, 0.5, 0.1, 0.3);
+        for _ in 0..2 {
+            let amp = Vec3::new(
+                uniform(r, 2.0, 5.0) * sign(r),
+                uniform(r, 2.0, 5.0) * sign(r),
+                uniform(r, 1.0, 3.0) * sign(r),
+            ) * 0.5;
+            seg = seg.with_translation(Oscillation {
+                amplitude: amp,
+                freq_hz: uniform(r, 0.5, 2.0),
+                phase: random_phase(r),
+            });
+        }
+        seg
+    });
+    framed(d, 0.1, 0.1, motion)
 }
 
 /// The consumer-grade 9D IMU of the presets (see the module docs), errors drawn from `r`.
