@@ -4,7 +4,9 @@
 
 use super::fuse::{FusionConfig, HeadingFusion, Pdr, wrap};
 use super::heading::{Fix, TrendConfig, heading_from_fixes, multilaterate, weak_heading};
-use super::{Beacon, BeaconClass, BeaconMap, BeaconSet, LogDistanceModel, Reading, Scanner};
+use super::{
+    Beacon, BeaconClass, BeaconMap, BeaconSet, LogDistanceModel, Reading, ScanMean, Scanner,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -281,6 +283,158 @@ pub struct WalkReport {
     pub models: [[f64; 2]; 2],
 }
 
+/// The walker's motion and IMU along a path: the start (arc length `s0`, m), the gyro bias,
+/// the noise of each sensor and the field, disturbed periodically in space.
+struct Walker<'a> {
+    cfg: &'a WalkConfig,
+    path: &'a Path,
+    s0: f64,
+    bias: Vec3<f64>,
+    noise: [Normal<f64>; 3],
+    earth: [f64; 3],
+    phase: [f64; 2],
+}
+
+impl<'a> Walker<'a> {
+    /// Draws the bias, the start and the field's phases from `rng`, in that order.
+    fn new(rng: &mut ChaCha8Rng, cfg: &'a WalkConfig, path: &'a Path) -> Self {
+        // `max` maps NaN to 0 as well: a missing noise setting means no noise.
+        let normal = |s: f64| gaussian(s.max(0.0));
+        let nb = normal(cfg.gyro_bias_std);
+        let bias = Vec3::new(nb.sample(rng), nb.sample(rng), nb.sample(rng));
+        let noise = [
+            normal(cfg.gyro_noise),
+            normal(cfg.acc_noise),
+            normal(cfg.mag_noise),
+        ];
+        let s0 = rng.random::<f64>() * path.perimeter();
+        let phase = [rng.random::<f64>() * 6.3, rng.random::<f64>() * 6.3];
+        let (h, dip) = (25.0, 43.3);
+        let earth = [h * cfg.declination.sin(), h * cfg.declination.cos(), -dip];
+        Self {
+            cfg,
+            path,
+            s0,
+            bias,
+            noise,
+            earth,
+            phase,
+        }
+    }
+
+    /// The field (µT, ENU) at position `p` (m).
+    fn field(&self, p: [f64; 2]) -> Vec3<f64> {
+        let (a, earth, phase) = (self.cfg.mag_disturbance, self.earth, self.phase);
+        let tau = core::f64::consts::TAU;
+        Vec3::new(
+            earth[0] + a * (tau * p[0] / 7.0 + phase[0]).sin() * (tau * p[1] / 9.0).cos(),
+            earth[1] + a * (tau * p[0] / 11.0).cos() * (tau * p[1] / 5.0 + phase[1]).sin(),
+            earth[2] + 0.5 * a * (tau * (p[0] + p[1]) / 13.0).sin(),
+        )
+    }
+
+    /// The true orientation at time `t` (s): the path's heading with the gait's pitch and roll.
+    fn truth_q(&self, t: f64) -> Quat<f64> {
+        let s = self.s0 + self.cfg.speed * t;
+        let (tau, f) = (core::f64::consts::TAU, self.cfg.step_freq);
+        let pitch = 0.03 * (tau * f * t).sin();
+        let roll = 0.03 * (0.5 * tau * f * t).sin();
+        Quat::from_euler_zyx(self.path.heading(s), pitch, roll)
+    }
+
+    /// The IMU sample at time `t` for orientation `q` and body rate `omega` (rad/s): bias and
+    /// noise drawn from `rng` (gyroscope, accelerometer, magnetometer in that order).
+    fn imu(&self, rng: &mut ChaCha8Rng, q: Quat<f64>, omega: Vec3<f64>, t: f64) -> ImuSample<f64> {
+        let s = self.s0 + self.cfg.speed * t;
+        let pos = self.path.position(s);
+        let psi_walk = self.path.heading(s);
+        let (tau, f) = (core::f64::consts::TAU, self.cfg.step_freq);
+        let lin = Vec3::new(
+            -0.5 * (tau * f * t).cos() * psi_walk.sin(),
+            0.5 * (tau * f * t).cos() * psi_walk.cos(),
+            9.81 + (tau * f * t).sin(),
+        );
+        let noise3 =
+            |d: &Normal<f64>, r: &mut ChaCha8Rng| Vec3::new(d.sample(r), d.sample(r), d.sample(r));
+        let [ng, na, nm] = &self.noise;
+        let gyr = omega + self.bias + noise3(ng, rng);
+        let acc = q.rotate_inverse(lin) + noise3(na, rng);
+        let mag = q.rotate_inverse(self.field(pos)) + noise3(nm, rng);
+        ImuSample::new(gyr, acc, mag)
+    }
+}
+
+/// The largest position errors of both dead reckonings so far, and at the last sample
+/// (`last`: the heading errors then, rad) the final errors.
+fn track_positions(
+    report: &mut WalkReport,
+    [mems, beacon]: [&Pdr; 2],
+    pos: [f64; 2],
+    last: Option<[f64; 2]>,
+) {
+    let dist = |p: [f64; 2]| (p[0] - pos[0]).hypot(p[1] - pos[1]);
+    report.max_pos_mems = report.max_pos_mems.max(dist(mems.position));
+    report.max_pos_beacon = report.max_pos_beacon.max(dist(beacon.position));
+    if let Some([em, eb]) = last {
+        report.final_mems = em;
+        report.final_beacon = eb;
+        report.final_pos_mems = dist(mems.position);
+        report.final_pos_beacon = dist(beacon.position);
+    }
+}
+
+/// The circular mean of the true headings `(t, ψ)` in `h` over the time span `span` (s).
+fn span_truth(h: &std::collections::VecDeque<(f64, f64)>, span: [f64; 2]) -> f64 {
+    let (s, c) = h
+        .iter()
+        .filter(|(t, _)| *t >= span[0] && *t <= span[1])
+        .fold((0.0, 0.0), |(s, c), (_, p): &(f64, f64)| {
+            (s + p.sin(), c + p.cos())
+        });
+    s.atan2(c)
+}
+
+/// Ranges to the medium and strong beacons of a scan heard at least 10 dB above the
+/// threshold: `(position, distance, its standard deviation)` from the class's fitted model.
+fn strong_ranges(
+    means: &[ScanMean],
+    beacons: &BeaconSet,
+    cfg: &WalkConfig,
+    model: &impl Fn(BeaconClass) -> LogDistanceModel,
+) -> Vec<([f64; 2], f64, f64)> {
+    means
+        .iter()
+        .filter_map(|m| {
+            let b = beacons.get(m.id)?;
+            let strong_enough = m.rssi >= cfg.threshold + 10.0;
+            (b.class != BeaconClass::Weak && strong_enough).then(|| {
+                let md = model(b.class);
+                (
+                    b.position,
+                    md.distance(m.rssi),
+                    md.range_std(m.rssi, cfg.shadowing_db),
+                )
+            })
+        })
+        .collect()
+}
+
+/// The report's means from the walk's sums: heading RMS of both pipelines over `n` samples,
+/// the fixes' position RMS and the beacon headings' RMS per kind.
+fn summarise(report: &mut WalkReport, (sum_m, sum_b): (f64, f64), n: usize, hd_err: [f64; 2]) {
+    report.rms_mems = (sum_m / n as f64).sqrt();
+    report.rms_beacon = (sum_b / n as f64).sqrt();
+    report.fix_rms.0 = (report.fix_rms.0 / report.fix_rms.1.max(1) as f64).sqrt();
+    for ((rms, err), count) in report
+        .beacon_heading_rms
+        .iter_mut()
+        .zip(hd_err)
+        .zip(report.decisions)
+    {
+        *rms = (err / count.max(1) as f64).sqrt();
+    }
+}
+
 /// Runs the beacon experiment on one simulated walk: [`HeadingPipeline`] on the simulated
 /// IMU (6D or 9D), PDR with its heading (MEMS only), and PDR with the beacon-fused heading
 /// (and beacon position fixes when `position_fixes`).
@@ -312,43 +466,11 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
         }
     };
 
-    // `max` maps NaN to 0 as well: a missing noise setting means no noise.
-    let normal = |s: f64| gaussian(s.max(0.0));
-    let nb = normal(cfg.gyro_bias_std);
-    let bias = Vec3::new(
-        nb.sample(&mut rng),
-        nb.sample(&mut rng),
-        nb.sample(&mut rng),
-    );
-    let (ng, na, nm) = (
-        normal(cfg.gyro_noise),
-        normal(cfg.acc_noise),
-        normal(cfg.mag_noise),
-    );
-    let s0 = rng.random::<f64>() * path.perimeter();
-    let phase = [rng.random::<f64>() * 6.3, rng.random::<f64>() * 6.3];
-    let (h, dip) = (25.0, 43.3);
-    let earth = [h * cfg.declination.sin(), h * cfg.declination.cos(), -dip];
-    let field = |p: [f64; 2]| {
-        let a = cfg.mag_disturbance;
-        let tau = core::f64::consts::TAU;
-        Vec3::new(
-            earth[0] + a * (tau * p[0] / 7.0 + phase[0]).sin() * (tau * p[1] / 9.0).cos(),
-            earth[1] + a * (tau * p[0] / 11.0).cos() * (tau * p[1] / 5.0 + phase[1]).sin(),
-            earth[2] + 0.5 * a * (tau * (p[0] + p[1]) / 13.0).sin(),
-        )
-    };
+    let walker = Walker::new(&mut rng, cfg, &path);
 
     let dt = 1.0 / cfg.rate;
     let n = (cfg.duration * cfg.rate).round() as usize;
     let f = cfg.step_freq;
-    let truth_q = |t: f64| {
-        let s = s0 + cfg.speed * t;
-        let tau = core::f64::consts::TAU;
-        let pitch = 0.03 * (tau * f * t).sin();
-        let roll = 0.03 * (0.5 * tau * f * t).sin();
-        Quat::from_euler_zyx(path.heading(s), pitch, roll)
-    };
     let params = HeadingPipelineParams {
         declination: cfg.declination,
         dof: cfg.dof,
@@ -356,13 +478,12 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
     };
     let mut filter = HeadingPipeline::<f64>::new(&params);
     let mut fusion = HeadingFusion::new(FusionConfig::default());
-    let start = path.position(s0);
+    let start = path.position(walker.s0);
     let mut pdr_mems = Pdr::new(start, 0.0, 0.01);
     let mut pdr_beacon = Pdr::new(start, 0.0, 0.01);
     let mut scanner = Scanner::new(cfg.threshold);
     let mut map = BeaconMap::new(8);
     let mut fixes: Vec<Fix> = Vec::new();
-    let trend = TrendConfig::default();
     let mut report = WalkReport {
         models: [[medium.a, medium.n], [strong.a, strong.n]],
         ..WalkReport::default()
@@ -372,38 +493,16 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
     let step_len = cfg.speed / f;
     let mut next_step = 1.0 / f;
     let mut next_scan = 1.0;
-    let mut q_prev = truth_q(0.0);
+    let mut q_prev = walker.truth_q(0.0);
     let mut truth_hist: std::collections::VecDeque<(f64, f64)> = Default::default();
     let mut hd_err = [0.0f64; 2];
-    let span_truth = |h: &std::collections::VecDeque<(f64, f64)>, span: [f64; 2]| {
-        let (s, c) = h
-            .iter()
-            .filter(|(t, _)| *t >= span[0] && *t <= span[1])
-            .fold((0.0, 0.0), |(s, c), (_, p): &(f64, f64)| {
-                (s + p.sin(), c + p.cos())
-            });
-        s.atan2(c)
-    };
     for k in 1..=n {
         let t = k as f64 * dt;
-        let q = truth_q(t);
+        let q = walker.truth_q(t);
         let omega = (q_prev.conj() * q).to_rotation_vector() * (1.0 / dt);
         q_prev = q;
-        let s = s0 + cfg.speed * t;
-        let pos = path.position(s);
-        let psi_walk = path.heading(s);
-        let tau = core::f64::consts::TAU;
-        let lin = Vec3::new(
-            -0.5 * (tau * f * t).cos() * psi_walk.sin(),
-            0.5 * (tau * f * t).cos() * psi_walk.cos(),
-            9.81 + (tau * f * t).sin(),
-        );
-        let noise3 =
-            |d: &Normal<f64>, r: &mut ChaCha8Rng| Vec3::new(d.sample(r), d.sample(r), d.sample(r));
-        let gyr = omega + bias + noise3(&ng, &mut rng);
-        let acc = q.rotate_inverse(lin) + noise3(&na, &mut rng);
-        let mag = q.rotate_inverse(field(pos)) + noise3(&nm, &mut rng);
-        filter.update(&ImuSample::new(gyr, acc, mag), dt);
+        let pos = path.position(walker.s0 + cfg.speed * t);
+        filter.update(&walker.imu(&mut rng, q, omega, t), dt);
 
         let (psi_true, _) = q.heading_inclination();
         let raw = filter.heading();
@@ -432,28 +531,14 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
             }
             let means = scanner.finish();
             map.push_scan(t, &means);
-            if let Some(hd) = weak_heading(&map, &beacons, &trend) {
+            if let Some(hd) = weak_heading(&map, &beacons, &TrendConfig::default()) {
                 report.decisions[0] += 1;
                 hd_err[0] += wrap(hd.psi - span_truth(&truth_hist, hd.span)).powi(2);
                 let ok = fusion.update(&hd);
                 report.headings[usize::from(!ok)] += 1;
                 map.clear();
             }
-            let ranges: Vec<_> = means
-                .iter()
-                .filter_map(|m| {
-                    let b = beacons.get(m.id)?;
-                    let strong_enough = m.rssi >= cfg.threshold + 10.0;
-                    (b.class != BeaconClass::Weak && strong_enough).then(|| {
-                        let md = model(b.class);
-                        (
-                            b.position,
-                            md.distance(m.rssi),
-                            md.range_std(m.rssi, cfg.shadowing_db),
-                        )
-                    })
-                })
-                .collect();
+            let ranges = strong_ranges(&means, &beacons, cfg, &model);
             if let Ok(fix) = multilaterate(t, &ranges) {
                 if cfg.position_fixes {
                     pdr_beacon.correct(&fix);
@@ -472,29 +557,16 @@ pub fn run_walk(cfg: &WalkConfig) -> Result<WalkReport, super::BeaconError> {
                 }
             }
         }
-        let (em, eb) = (wrap(psi_mems - psi_true), wrap(psi_fused - psi_true));
-        sum_m += em * em;
-        sum_b += eb * eb;
-        let dist = |p: [f64; 2]| (p[0] - pos[0]).hypot(p[1] - pos[1]);
-        report.max_pos_mems = report.max_pos_mems.max(dist(pdr_mems.position));
-        report.max_pos_beacon = report.max_pos_beacon.max(dist(pdr_beacon.position));
-        if k == n {
-            report.final_mems = em;
-            report.final_beacon = eb;
-            report.final_pos_mems = dist(pdr_mems.position);
-            report.final_pos_beacon = dist(pdr_beacon.position);
-        }
+        let errors = [wrap(psi_mems - psi_true), wrap(psi_fused - psi_true)];
+        sum_m += errors[0] * errors[0];
+        sum_b += errors[1] * errors[1];
+        track_positions(
+            &mut report,
+            [&pdr_mems, &pdr_beacon],
+            pos,
+            (k == n).then_some(errors),
+        );
     }
-    report.rms_mems = (sum_m / n as f64).sqrt();
-    report.rms_beacon = (sum_b / n as f64).sqrt();
-    report.fix_rms.0 = (report.fix_rms.0 / report.fix_rms.1.max(1) as f64).sqrt();
-    for ((rms, err), count) in report
-        .beacon_heading_rms
-        .iter_mut()
-        .zip(hd_err)
-        .zip(report.decisions)
-    {
-        *rms = (err / count.max(1) as f64).sqrt();
-    }
+    summarise(&mut report, (sum_m, sum_b), n, hd_err);
     Ok(report)
 }

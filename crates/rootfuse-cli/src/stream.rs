@@ -270,8 +270,7 @@ fn open_csv_input(
         ));
     }
     check_mag(job, file, blocks.has_mag())?;
-    let writer =
-        EstimateWriter::create(out, job.format, None, names).map_err(|e| e.to_string())?;
+    let writer = EstimateWriter::create(out, job.format, None, names).map_err(|e| e.to_string())?;
     Ok(CsvInput {
         blocks,
         buffer,

@@ -3,8 +3,8 @@
 use crate::Bytes;
 use rootfuse_lane::{Lane, Mat, Vector};
 use rootfuse_lsq::rls::{
-    BiermanUd, Conventional, InformationQr, InverseQr, Joseph, Potter, RecursiveLeastSquares,
-    RlsConfig, RlsError,
+    BiermanUd, Conventional, CovarianceBounds, Health, InformationQr, InverseQr, Joseph, Potter,
+    RecursiveLeastSquares, RlsConfig, RlsError,
 };
 
 /// Most operations one input runs.
@@ -109,16 +109,14 @@ fn bits<T: Lane<Scalar = T> + Into<f64>, const R: usize, const C: usize>(
         .collect()
 }
 
-fn run<T, F, const N: usize>(
-    input: &mut Bytes,
-    single: bool,
-    factored: bool,
-    extra: Option<Extra<T, F, N>>,
-) where
+/// A filter from the input's prior (`x₀`, an isotropic `P₀`) and `config`, with the checks of
+/// construction: an invalid configuration or prior is refused, a valid moderate one accepted.
+/// Returns the filter and `P₀`'s variance, or None when construction was (rightly) refused.
+fn prior<T, F, const N: usize>(input: &mut Bytes, single: bool, config: RlsConfig) -> Option<(F, T)>
+where
     T: Lane<Scalar = T, Mask = bool> + Into<f64>,
     F: RecursiveLeastSquares<T, N>,
 {
-    let config = config_from(input, single);
     let x0 = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
     let pb = input.u8();
     let p0 = match (pb % 4, config.bounds) {
@@ -136,7 +134,7 @@ fn run<T, F, const N: usize>(
                 && b.p_max > b.p_min
                 && N as f64 * b.p_min < b.p_max
         });
-    let mut f = match F::with_isotropic_prior(&x0, p0, config) {
+    match F::with_isotropic_prior(&x0, p0, config) {
         Ok(f) => {
             assert!(config_ok, "{name}: invalid {config:?} accepted");
             assert!(x0.is_finite(), "{name}: non-finite prior accepted");
@@ -145,7 +143,7 @@ fn run<T, F, const N: usize>(
                 p > 0.0 && p.is_finite(),
                 "{name}: prior variance {p} accepted"
             );
-            f
+            Some((f, p0))
         }
         Err(e) => {
             let config_err = matches!(
@@ -161,19 +159,245 @@ fn run<T, F, const N: usize>(
                 // An invariant failure, reported by panicking as every check of this harness is.
                 panic!("{name}: valid prior {p} rejected: {e:?}");
             }
-            return;
+            None
         }
+    }
+}
+
+/// Whether a value keeps the run in the moderate range (0 or magnitude in [1e-3, 1e3]).
+fn track<T: Into<f64>>(moderate: &mut bool, v: T) {
+    let a = v.into().abs();
+    *moderate &= a == 0.0 || (1e-3..=1e3).contains(&a);
+}
+
+/// What one operation did: for a scalar update whether its input was valid and whether it
+/// was applied; `w·‖h‖²` of its valid rows; its forgetting factor.
+struct Step {
+    scalar_input_ok: Option<(bool, bool)>,
+    rows: Vec<f64>,
+    lambda_step: f64,
+}
+
+/// Reads one operation from the input and applies it: a time update (`extra`), a vector
+/// update of two rows or a scalar update with or without forgetting.
+fn apply_op<T, F, const N: usize>(
+    f: &mut F,
+    input: &mut Bytes,
+    single: bool,
+    extra: Option<Extra<T, F, N>>,
+    lambda: f64,
+    moderate: &mut bool,
+    (name, op): (&str, usize),
+) -> Step
+where
+    T: Lane<Scalar = T, Mask = bool> + Into<f64>,
+    F: RecursiveLeastSquares<T, N>,
+{
+    let kind = input.u8();
+    let mut scalar_input_ok = None;
+    // w·‖h‖² of this operation's valid rows, and its forgetting factor.
+    let mut rows: Vec<f64> = Vec::new();
+    let mut lambda_step = lambda;
+    if let (7, Some(extra)) = (kind % 8, extra) {
+        let q = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+        q.m.iter().for_each(|r| track(moderate, r[0]));
+        let applied = extra(f, &q);
+        let q_ok = q.is_finite() && q.m.iter().all(|r| r[0].simd_ge(T::zero()));
+        if !q_ok {
+            assert!(!applied, "{name} op {op}: invalid process noise applied");
+        }
+    } else if kind % 8 == 6 {
+        let h = Mat::<T, 2, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+        let z = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
+        let w = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
+        h.m.iter()
+            .flatten()
+            .chain(w.m.iter().flatten())
+            .for_each(|&v| track(moderate, v));
+        for (row, wi) in h.m.iter().zip(w.m.iter()) {
+            let h2: f64 = row.iter().map(|&v| Into::<f64>::into(v).powi(2)).sum();
+            note_row(&mut rows, h2, Into::<f64>::into(wi[0]));
+        }
+        f.update_vector(&h, &z, &w);
+    } else {
+        let h = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
+        let z = T::from_f64(input.value(single));
+        let w = T::from_f64(input.value(single));
+        h.m.iter().for_each(|r| track(moderate, r[0]));
+        track(moderate, w);
+        note_row(
+            &mut rows,
+            Into::<f64>::into(h.dot(&h)),
+            Into::<f64>::into(w),
+        );
+        if kind & 16 == 0 {
+            lambda_step = 1.0;
+        }
+        let applied = f.update_with_forgetting(&h, z, w, kind & 16 != 0);
+        let input_ok = h.is_finite()
+            && h.dot(&h).is_finite()
+            && z.is_finite()
+            && w.is_finite()
+            && w.simd_gt(T::zero());
+        assert!(
+            !applied || input_ok,
+            "{name} op {op}: invalid sample applied"
+        );
+        scalar_input_ok = Some((input_ok, applied));
+    }
+    Step {
+        scalar_input_ok,
+        rows,
+        lambda_step,
+    }
+}
+
+/// One operation's state, for the `p_max` check ([`check_p_max`]).
+struct BoundCheck<'a, T: Lane, const N: usize> {
+    name: &'static str,
+    op: usize,
+    factored: bool,
+    /// The forgetting factor of this operation (1 for an update without forgetting).
+    lambda_step: f64,
+    /// `w·‖h‖²` of the operation's valid rows.
+    rows: &'a [f64],
+    p: &'a Mat<T, N, N>,
+    p_before: &'a Mat<T, N, N>,
+    health: &'a Health<T>,
+}
+
+/// `P ≤ p_max` within the rounding the form's arithmetic allows (derived below), where it can
+/// be checked; returns the new certified bound `p_norm` of `λ_max(P)` (the old one when `P`
+/// did not change).
+fn check_p_max<T, const N: usize>(c: &BoundCheck<'_, T, N>, b: CovarianceBounds, p_norm: f64) -> f64
+where
+    T: Lane<Scalar = T, Mask = bool> + Into<f64>,
+{
+    let BoundCheck {
+        name,
+        op,
+        factored,
+        lambda_step,
+        rows,
+        p,
+        p_before,
+        health,
+    } = *c;
+    let p = *p;
+    let n_eps = N as f64 * T::EPSILON;
+    // The loss of this operation (see `p_norm`), per valid row and, with forgetting,
+    // per regularising pseudo-row (w·‖h‖² = (1 − λ)/p_max), with N = p_norm the size of
+    // the P the update started from and L = max(p_max, N) the size of the result: the
+    // subtraction from P̃ = P/λ_s rounds at P̃'s scale (covariance forms u·N/λ_s;
+    // Potter's factor u·√(N/λ_s), times √L in P; found: Potter, f64, P₀ = 1e-3·I,
+    // λ = 1e-30, p_max = 1e5 ended at p_max + 4.2), and a row with
+    // α = 1 + w·hᵀ(P/λ_s)h loses u·α (Potter u·√α) relative at the result's scale.
+    // Plus the contraction of an excess by the exact regularised forgetting (an
+    // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
+    // Bierman U-D scales `D` by 1/λ_s as the covariance forms scale `P`, so it rounds at
+    // the same scale (found: f64, λ = 4.5e-44, p_max = 100, P_02 = −1.2e-8 after 46
+    // operations where 100·(1 + 10·n·u) was allowed).
+    let covariance_form = matches!(name, "conventional" | "joseph" | "bierman-ud");
+    // Inverse QR rotates the same `S̃ = S/√λ_s` that Potter updates, so it rounds at
+    // the same scale (found: f32, λ = 1.2e-25, p_max = 100 ended 4.9e-5 relative above).
+    let square_root_factor = matches!(name, "potter" | "inverse-qr");
+    let (loss, contracted) = if covariance_form || square_root_factor {
+        let reg = (1.0 - lambda_step) / b.p_max;
+        let large = b.p_max.max(p_norm);
+        let loss: f64 = rows
+            .iter()
+            .copied()
+            .chain((0..N).map(|_| reg))
+            .map(|wh2| {
+                let alpha = 1.0 + wh2 * p_norm / lambda_step;
+                4.0 * T::EPSILON
+                    * if covariance_form {
+                        p_norm / lambda_step + alpha * large
+                    } else {
+                        (large * p_norm / lambda_step).sqrt() + alpha.sqrt() * large
+                    }
+            })
+            .sum();
+        // The square-root factor's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
+        // which dominates once λ ≲ u² (found: λ = 1.5e-47, P₀ = 1e-3·I, p_max = 100
+        // ended at 1.1e12, about (u·‖S/√λ‖)²).
+        let factor_rounding: f64 = if covariance_form {
+            0.0
+        } else {
+            (rows.len() + N) as f64 * 4.0 * T::EPSILON * (p_norm / lambda_step).sqrt()
+        };
+        let excess = (p_norm - b.p_max).max(0.0);
+        (
+            loss + factor_rounding * factor_rounding,
+            lambda_step * excess,
+        )
+    } else {
+        (0.0, 0.0)
     };
+    // The bound is kept on the stored factor, so the formed P can exceed it by its
+    // rounding, about n·u·κ(P) relative; the factor's pivot ratio stands in for κ (found:
+    // information QR at κ ≈ 7e8 overshot the plain 10·n·u slack).
+    let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
+    let ratio = if factored { (hi / lo).max(1.0) } else { 1.0 };
+    let limit64 = b.p_max * (1.0 + 10.0 * n_eps * ratio) + contracted + loss;
+    let limit = T::from_f64(limit64);
+    let room = Mat::<T, N, N>::identity().scale(limit) - p;
+    // A slack beyond the lane type's range leaves nothing to check; nor does a factored
+    // form's P formed at a pivot ratio beyond 1/(n·u), whose rounding can exceed any
+    // bound (ROBUSTNESS.md; found: information QR with h entries of 1e50, pivot ratio
+    // 1e99, formed P_11 = 1e19 where the exact value is below p_max).
+    // The pivot ratio is only a lower bound of κ: the formed P itself must also show
+    // an eigenvalue gap above its own rounding (found: information QR, f32, pivot
+    // ratio within 1/(n·u) but κ(P) ≈ 10²¹; the formed P came out indefinite and
+    // 1.39e10 against p_max = 1e10).
+    let formed = Mat::<f64, N, N>::from_fn(|i, j| p.m[i][j].into());
+    let rounding = 10.0 * n_eps * formed.trace().abs();
+    let formed_gap = (formed - Mat::identity().scale(rounding)).cholesky().1;
+    let well_conditioned = !factored || (hi <= lo / n_eps && formed_gap);
+    // An unchanged P was checked before (its bound carries over).
+    let unchanged = bits(&p) == bits(p_before);
+    let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned && !unchanged;
+    assert!(
+        !checkable || room.cholesky().1,
+        "{name} op {op}: P above p_max = {} (allowed {limit64:e}): {p:?}",
+        b.p_max
+    );
+    if !unchanged {
+        // Both are upper bounds of λ_max(P): the limit just checked (when it was) and
+        // the largest absolute row sum.
+        let row_sum =
+            p.m.iter()
+                .map(|r| r.iter().map(|&v| Into::<f64>::into(v).abs()).sum::<f64>())
+                .fold(0.0, f64::max);
+        return if checkable {
+            row_sum.min(limit64)
+        } else {
+            row_sum
+        };
+    }
+    p_norm
+}
+
+fn run<T, F, const N: usize>(
+    input: &mut Bytes,
+    single: bool,
+    factored: bool,
+    extra: Option<Extra<T, F, N>>,
+) where
+    T: Lane<Scalar = T, Mask = bool> + Into<f64>,
+    F: RecursiveLeastSquares<T, N>,
+{
+    let config = config_from(input, single);
+    let Some((mut f, p0)) = prior::<T, F, N>(input, single, config) else {
+        return;
+    };
+    let name = F::NAME;
     let n_eps = N as f64 * T::EPSILON;
     // While every regressor entry, weight and process noise is 0 or of magnitude in
     // [1e-3, 1e3] and the prior variance in [1e-6, 1e8], no variance can fall below about
     // 1e-15 in 200 operations, far above underflow: the strict positivity of the pivots is
     // checked then. Outside, a variance may underflow to zero (ROBUSTNESS.md).
     let mut moderate = (1e-6..=1e8).contains(&Into::<f64>::into(p0));
-    let track = |moderate: &mut bool, v: T| {
-        let a = Into::<f64>::into(v).abs();
-        *moderate &= a == 0.0 || (1e-3..=1e3).contains(&a);
-    };
     // The covariance forms subtract P̃·h·hᵀ·P̃/α from P̃ = P/λ itself: one row loses about u·α
     // of P's accuracy, α = 1 + w·hᵀ(P/λ)h; Potter's square factor u·√α (ROBUSTNESS.md). With
     // bounds, α is measured on the P *before* the update, not on p_max: when u·α ≳ 1 (e.g.
@@ -187,58 +411,19 @@ fn run<T, F, const N: usize>(
             break;
         }
         let (x_before, p_before, h_before) = (f.estimate(), f.covariance(), f.health());
-        let kind = input.u8();
-        let mut scalar_input_ok = None;
-        // w·‖h‖² of this operation's valid rows, and its forgetting factor.
-        let mut rows: Vec<f64> = Vec::new();
-        let mut lambda_step = config.lambda;
-        if let (7, Some(extra)) = (kind % 8, extra) {
-            let q = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
-            q.m.iter().for_each(|r| track(&mut moderate, r[0]));
-            let applied = extra(&mut f, &q);
-            let q_ok = q.is_finite() && q.m.iter().all(|r| r[0].simd_ge(T::zero()));
-            if !q_ok {
-                assert!(!applied, "{name} op {op}: invalid process noise applied");
-            }
-        } else if kind % 8 == 6 {
-            let h = Mat::<T, 2, N>::from_fn(|_, _| T::from_f64(input.value(single)));
-            let z = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
-            let w = Vector::<T, 2>::from_fn(|_, _| T::from_f64(input.value(single)));
-            h.m.iter()
-                .flatten()
-                .chain(w.m.iter().flatten())
-                .for_each(|&v| track(&mut moderate, v));
-            for (row, wi) in h.m.iter().zip(w.m.iter()) {
-                let h2: f64 = row.iter().map(|&v| Into::<f64>::into(v).powi(2)).sum();
-                note_row(&mut rows, h2, Into::<f64>::into(wi[0]));
-            }
-            f.update_vector(&h, &z, &w);
-        } else {
-            let h = Vector::<T, N>::from_fn(|_, _| T::from_f64(input.value(single)));
-            let z = T::from_f64(input.value(single));
-            let w = T::from_f64(input.value(single));
-            h.m.iter().for_each(|r| track(&mut moderate, r[0]));
-            track(&mut moderate, w);
-            note_row(
-                &mut rows,
-                Into::<f64>::into(h.dot(&h)),
-                Into::<f64>::into(w),
-            );
-            if kind & 16 == 0 {
-                lambda_step = 1.0;
-            }
-            let applied = f.update_with_forgetting(&h, z, w, kind & 16 != 0);
-            let input_ok = h.is_finite()
-                && h.dot(&h).is_finite()
-                && z.is_finite()
-                && w.is_finite()
-                && w.simd_gt(T::zero());
-            assert!(
-                !applied || input_ok,
-                "{name} op {op}: invalid sample applied"
-            );
-            scalar_input_ok = Some((input_ok, applied));
-        }
+        let Step {
+            scalar_input_ok,
+            rows,
+            lambda_step,
+        } = apply_op(
+            &mut f,
+            input,
+            single,
+            extra,
+            config.lambda,
+            &mut moderate,
+            (name, op),
+        );
         let (x, p, health) = (f.estimate(), f.covariance(), f.health());
         if let Some((input_ok, applied)) = scalar_input_ok {
             let c = |a: &T::Counts, b: &T::Counts| a.as_ref()[0] - b.as_ref()[0];
@@ -290,96 +475,17 @@ fn run<T, F, const N: usize>(
         if let Some(b) = config.bounds
             && b.p_max.is_finite()
         {
-            // The loss of this operation (see `p_norm`), per valid row and, with forgetting,
-            // per regularising pseudo-row (w·‖h‖² = (1 − λ)/p_max), with N = p_norm the size of
-            // the P the update started from and L = max(p_max, N) the size of the result: the
-            // subtraction from P̃ = P/λ_s rounds at P̃'s scale (covariance forms u·N/λ_s;
-            // Potter's factor u·√(N/λ_s), times √L in P; found: Potter, f64, P₀ = 1e-3·I,
-            // λ = 1e-30, p_max = 1e5 ended at p_max + 4.2), and a row with
-            // α = 1 + w·hᵀ(P/λ_s)h loses u·α (Potter u·√α) relative at the result's scale.
-            // Plus the contraction of an excess by the exact regularised forgetting (an
-            // eigenvalue p > p_max maps below p_max + λ(p − p_max)).
-            // Bierman U-D scales `D` by 1/λ_s as the covariance forms scale `P`, so it rounds at
-            // the same scale (found: f64, λ = 4.5e-44, p_max = 100, P_02 = −1.2e-8 after 46
-            // operations where 100·(1 + 10·n·u) was allowed).
-            let covariance_form = matches!(name, "conventional" | "joseph" | "bierman-ud");
-            // Inverse QR rotates the same `S̃ = S/√λ_s` that Potter updates, so it rounds at
-            // the same scale (found: f32, λ = 1.2e-25, p_max = 100 ended 4.9e-5 relative above).
-            let square_root_factor = matches!(name, "potter" | "inverse-qr");
-            let (loss, contracted) = if covariance_form || square_root_factor {
-                let reg = (1.0 - lambda_step) / b.p_max;
-                let large = b.p_max.max(p_norm);
-                let loss: f64 = rows
-                    .iter()
-                    .copied()
-                    .chain((0..N).map(|_| reg))
-                    .map(|wh2| {
-                        let alpha = 1.0 + wh2 * p_norm / lambda_step;
-                        4.0 * T::EPSILON
-                            * if covariance_form {
-                                p_norm / lambda_step + alpha * large
-                            } else {
-                                (large * p_norm / lambda_step).sqrt() + alpha.sqrt() * large
-                            }
-                    })
-                    .sum();
-                // The square-root factor's P = S Sᵀ also carries δS·δSᵀ: the square of the factor's rounding,
-                // which dominates once λ ≲ u² (found: λ = 1.5e-47, P₀ = 1e-3·I, p_max = 100
-                // ended at 1.1e12, about (u·‖S/√λ‖)²).
-                let factor_rounding: f64 = if covariance_form {
-                    0.0
-                } else {
-                    (rows.len() + N) as f64 * 4.0 * T::EPSILON * (p_norm / lambda_step).sqrt()
-                };
-                let excess = (p_norm - b.p_max).max(0.0);
-                (
-                    loss + factor_rounding * factor_rounding,
-                    lambda_step * excess,
-                )
-            } else {
-                (0.0, 0.0)
+            let check = BoundCheck {
+                name,
+                op,
+                factored,
+                lambda_step,
+                rows: &rows,
+                p: &p,
+                p_before: &p_before,
+                health: &health,
             };
-            // The bound is kept on the stored factor, so the formed P can exceed it by its
-            // rounding, about n·u·κ(P) relative; the factor's pivot ratio stands in for κ (found:
-            // information QR at κ ≈ 7e8 overshot the plain 10·n·u slack).
-            let (lo, hi): (f64, f64) = (health.min_pivot.into(), health.max_pivot.into());
-            let ratio = if factored { (hi / lo).max(1.0) } else { 1.0 };
-            let limit64 = b.p_max * (1.0 + 10.0 * n_eps * ratio) + contracted + loss;
-            let limit = T::from_f64(limit64);
-            let room = Mat::<T, N, N>::identity().scale(limit) - p;
-            // A slack beyond the lane type's range leaves nothing to check; nor does a factored
-            // form's P formed at a pivot ratio beyond 1/(n·u), whose rounding can exceed any
-            // bound (ROBUSTNESS.md; found: information QR with h entries of 1e50, pivot ratio
-            // 1e99, formed P_11 = 1e19 where the exact value is below p_max).
-            // The pivot ratio is only a lower bound of κ: the formed P itself must also show
-            // an eigenvalue gap above its own rounding (found: information QR, f32, pivot
-            // ratio within 1/(n·u) but κ(P) ≈ 10²¹; the formed P came out indefinite and
-            // 1.39e10 against p_max = 1e10).
-            let formed = Mat::<f64, N, N>::from_fn(|i, j| p.m[i][j].into());
-            let rounding = 10.0 * n_eps * formed.trace().abs();
-            let formed_gap = (formed - Mat::identity().scale(rounding)).cholesky().1;
-            let well_conditioned = !factored || (hi <= lo / n_eps && formed_gap);
-            // An unchanged P was checked before (its bound carries over).
-            let unchanged = bits(&p) == bits(&p_before);
-            let checkable = Into::<f64>::into(limit).is_finite() && well_conditioned && !unchanged;
-            assert!(
-                !checkable || room.cholesky().1,
-                "{name} op {op}: P above p_max = {} (allowed {limit64:e}): {p:?}",
-                b.p_max
-            );
-            if !unchanged {
-                // Both are upper bounds of λ_max(P): the limit just checked (when it was) and
-                // the largest absolute row sum.
-                let row_sum =
-                    p.m.iter()
-                        .map(|r| r.iter().map(|&v| Into::<f64>::into(v).abs()).sum::<f64>())
-                        .fold(0.0, f64::max);
-                p_norm = if checkable {
-                    row_sum.min(limit64)
-                } else {
-                    row_sum
-                };
-            }
+            p_norm = check_p_max(&check, b, p_norm);
         }
     }
 }
