@@ -30,6 +30,7 @@ mod filters;
 mod outputs;
 mod plot;
 mod run;
+mod signal;
 mod simulate;
 mod stream;
 mod stress;

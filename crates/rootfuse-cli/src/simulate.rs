@@ -58,7 +58,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     };
     let mut ledger = Ledger::load(dir);
     ledger.check(&args.out, SIMULATE, args.force)?;
-    crate::run::install_signal_handler()?;
+    crate::signal::install_signal_handler()?;
     // What a killed simulate left (SIGKILL, power loss): its temporary files of this output.
     for tmp in stale_temporaries(&args.out) {
         std::fs::remove_file(&tmp)
@@ -87,7 +87,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
                 // Dropping the writer removes its temporary file.
                 drop(writer);
                 eprintln!("interrupted: {} not written", args.out.display());
-                std::process::exit(crate::run::EXIT_INTERRUPTED);
+                std::process::exit(crate::signal::EXIT_INTERRUPTED);
             }
             Err(e) => return Err(e.to_string()),
         }
@@ -127,7 +127,7 @@ fn write_group(
     let mut device = Vec::with_capacity(BLOCK_ROWS);
     let mut rows = Vec::with_capacity(BLOCK_ROWS);
     loop {
-        if crate::run::interrupted() {
+        if crate::signal::interrupted() {
             return Ok(false);
         }
         // The devices' streams are independent: draw a round of each on the cores.

@@ -6,7 +6,7 @@
 //! fleet: read in order, their rows grouped by the `device` column (devices keep their
 //! filters from one file to the next, so a folder of files split by time runs as one).
 use crate::checks::InputChecks;
-use crate::run::{exit_interrupted, interrupted};
+use crate::signal::{exit_interrupted, interrupted};
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_attitude::units::Units;
