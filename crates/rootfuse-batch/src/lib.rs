@@ -62,7 +62,7 @@
 //! | `mahony` | 188 | 320 | 182 |
 //! | `madgwick` | 176 | 296 | 170 |
 //! | `ekf` | 388 | 720 | 382 |
-//! | `sqrt-eskf` | 668 | 1280 | 662 |
+//! | `sqrt-eskf` | 684 | 1312 | 678 |
 //! | `complementary-reconstruction` | 332 | 608 | 324 |
 //! | `heading-pipeline` | 868 | 1536 | 838 |
 //! | `lsq-fusion` | 1272 | 2256 | 1238 |

@@ -185,6 +185,16 @@ params! {
         /// their prediction and every estimate is bit for bit that of 0; on the simulated
         /// pendulum (6D, 5 seeds) the inclination falls from 1.17° to 0.89° (`docs/accuracy.md`).
         acc_adapt_window: f64 = 0.3, "s", [0.0, 1e6];
+        /// The reported attitude covariance adds, on both inclination axes, this multiple of
+        /// the running mean square of the inclination innovation (rad²): the error the motion
+        /// acceleration leaves in the low-passed gravity, which `P` does not model (its
+        /// noise is white, the error is not). Only the report changes (and with it the
+        /// smoother's weights); the forward estimates are bit for bit those of 0, which
+        /// reports `P` alone. 2 holds the 95 % coverage on the simulated pendulum and
+        /// translation scenarios (`docs/accuracy.md`).
+        model_error_scale: f64 = 2.0, "1", [0.0, 1e3];
+        /// Time constant of that running mean square, s.
+        model_error_window: f64 = 1.0, "s", [0.0, 1e6];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted
@@ -297,6 +307,9 @@ lane_state! {
         /// Running mean of the normalised squared inclination innovation (1 when the model
         /// holds; see `acc_adapt_window`).
         innovation_nis: T,
+        /// Running mean square of the inclination innovation (rad², per axis), time constant
+        /// `model_error_window`: the model error the covariance reports beside `P`.
+        innovation_ms: T,
         /// A gyro-bias step was detected by the last sample: the next time update re-inflates
         /// the bias covariance.
         bias_step: T::Mask,
@@ -325,6 +338,8 @@ lane_state! {
         acc_var: T,
         acc_gate: T,
         acc_adapt_window: T,
+        model_error_scale: T,
+        model_error_window: T,
         /// `acc_spike²`, (m/s²)².
         acc_spike2: T,
         acc_reject_time: T,
@@ -362,6 +377,8 @@ impl<T: Lane> Coefficients<T> {
             acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
             acc_gate: p.coef(|p| p.acc_gate),
             acc_adapt_window: p.coef(|p| p.acc_adapt_window),
+            model_error_scale: p.coef(|p| p.model_error_scale),
+            model_error_window: p.coef(|p| p.model_error_window),
             acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
             acc_reject_time: p.coef(|p| p.acc_reject_time),
             startup_time: p.coef(|p| p.startup_time.max(1e-6)),
@@ -433,11 +450,13 @@ struct PerDt<T: Lane> {
     r_mag: T,
     /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference, the
     /// accelerometer low-pass after the start-up (each stage τ/2) and the innovation
-    /// covariance matching (`acc_adapt_window`).
+    /// covariance matching (`acc_adapt_window`) and the model-error mean square
+    /// (`model_error_window`).
     k_rest: T,
     k_ref: T,
     k_acc: T,
     k_adapt: T,
+    k_model: T,
 }
 
 impl<T: Lane> PerDt<T> {
@@ -459,6 +478,7 @@ impl<T: Lane> PerDt<T> {
             k_ref: lowpass_gain(dt, c.mag_ref_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
             k_adapt: lowpass_gain(dt, c.acc_adapt_window),
+            k_model: lowpass_gain(dt, c.model_error_window),
         }
     }
 
@@ -494,6 +514,7 @@ impl<T: Lane> State<T> {
             innovation_mean_x: zero,
             innovation_mean_y: zero,
             innovation_nis: T::one(),
+            innovation_ms: zero,
             bias_step: <T::Mask as Mask>::splat(false),
             age: zero,
             field: FieldReference {
@@ -593,8 +614,8 @@ impl<T: Lane> SqrtEskf<T> {
 
     /// Sets the orientation `q` (sensor to earth, ENU; normalised here) as
     /// [`set_quat`](OrientationFilter::set_quat) does, and its uncertainty: the attitude error
-    /// becomes `sigma`² · I (rad², per earth axis, every lane its own `sigma`), uncorrelated
-    /// with the bias error, whose covariance is kept. [`attitude_covariance`](Self::attitude_covariance)
+    /// becomes `sigma`² · I (rad², per earth axis, every lane its own `sigma`; the model error
+    /// seen so far is forgotten), uncorrelated with the bias error, whose covariance is kept. [`attitude_covariance`](Self::attitude_covariance)
     /// reads `sigma`² back on the diagonal.
     ///
     /// Refused, with nothing changed: a non-finite `q` or one whose norm is outside
@@ -647,6 +668,8 @@ impl<T: Lane> SqrtEskf<T> {
             }
         }
         st.heading_offset_var = sigma * sigma;
+        // The given σ is the whole uncertainty: the model error seen so far is forgotten.
+        st.innovation_ms = T::zero();
         st.preset_covariance |= !st.initialized;
         Ok(())
     }
@@ -746,6 +769,8 @@ impl<T: Lane> SqrtEskf<T> {
     /// The attitude-error covariance (rad², earth frame) of the estimate returned by
     /// [`quat`](OrientationFilter::quat). In 9D the heading variance is that of the magnetic
     /// heading offset and its correlation with the inclination is not tracked (set to zero).
+    /// Both inclination variances include the model error: `model_error_scale` times the
+    /// running mean square of the inclination innovation.
     pub fn attitude_covariance(&self) -> Mat<T, 3, 3> {
         // The attitude block of `S·Sᵀ` only (`S` upper triangular: `S_ik = 0` for `k < i`):
         // a quarter of the full product, the same sums in the same order.
@@ -764,6 +789,9 @@ impl<T: Lane> SqrtEskf<T> {
             }
             a.m[2][2] = self.state.heading_offset_var;
         }
+        let e = self.state.innovation_ms * self.coef.model_error_scale;
+        a.m[0][0] += e;
+        a.m[1][1] += e;
         a
     }
 

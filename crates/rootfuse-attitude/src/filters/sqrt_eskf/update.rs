@@ -353,6 +353,15 @@ impl<T: Lane> SqrtEskf<T> {
         let (dx0, accepted0, alpha0) = self.scalar_update::<0>(row(0), eps[0], r_acc, gate, apply);
         let nu1 = eps[1] - dx0[1];
         let (dx1, accepted1, alpha1) = self.scalar_update::<1>(row(1), nu1, r_acc, gate, apply);
+        // The model error's mean square (reported with the covariance): the innovation before
+        // this sample's correction, per axis.
+        {
+            let e2 = (eps[0] * eps[0] + eps[1] * eps[1]) * T::from_f64(0.5);
+            let k = self.per_dt.k_model;
+            let m = self.state.innovation_ms;
+            let learn = apply & !starting & e2.is_finite();
+            self.state.innovation_ms = T::select(learn, m + (e2 - m) * k, m);
+        }
         if adapt.any() {
             // Each innovation against its variance predicted with the nominal noise.
             let nominal = |alpha: T| alpha - r_acc + r_nominal;
