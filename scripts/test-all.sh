@@ -24,7 +24,7 @@ fi
 # tests run beside the flagship. Downloads overlap the Rust build.
 (
     .venv/bin/python -m pip install --quiet --upgrade pip &&
-    .venv/bin/python -m pip install --quiet "maturin>=1.5,<2" numpy pytest pyarrow \
+    .venv/bin/python -m pip install --quiet "maturin>=1.5,<2" numpy pytest mypy pyarrow \
         "pyspark>=4.0,<5" "pandas>=2.2,<3" venv-pack vqf
 ) >"$logs/pip.log" 2>&1 &
 pip_job=$!

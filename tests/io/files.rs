@@ -206,7 +206,7 @@ fn what_is_written_reads_back() {
     let e = write_recording(&p, &rec).unwrap_err();
     assert!(
         e.to_string()
-            .contains("row 3: gyroscope value is not finite"),
+            .contains("row 3 (line 5), column `gy`: gyroscope value NaN is not finite"),
         "{e}"
     );
     write_recording_with(&p, &rec, ImuGaps::Keep).unwrap();
@@ -214,11 +214,15 @@ fn what_is_written_reads_back() {
     rec.gyr[3].y = 0.0;
     rec.t[10] = rec.t[9];
     let e = write_recording(&p, &rec).unwrap_err();
-    assert!(e.to_string().contains("row 10: time"), "{e}");
+    assert!(
+        e.to_string().contains("row 10 (line 12), column `t`: time"),
+        "{e}"
+    );
     let q = rootfuse_attitude::Quat::new(1.0, 0.0, 0.0, 0.0);
     let e = write_estimates(&p, &[0.0, 0.0], &[q, q], &[]).unwrap_err();
     assert!(
-        e.to_string().contains("row 1: time 0 does not increase"),
+        e.to_string()
+            .contains("row 1 (line 3), column `t`: time 0 does not increase"),
         "{e}"
     );
 }

@@ -266,13 +266,19 @@ pub enum WriteError {
         column: String,
     },
     /// A recording or estimate that its reader would refuse: a time that is not finite or does
-    /// not increase, a sample that is not finite (the file would not read back).
-    #[error("{file}: row {row}: {what}; the file would not read back")]
+    /// not increase, a sample that is not finite (the file would not read back). Shown with
+    /// the line and column the reader would name (the header is line 1, data row 0 line 2).
+    #[error(
+        "{file}: row {row} (line {line}), column `{column}`: {what}; the file would not read back",
+        line = *row + 2
+    )]
     Unreadable {
         /// The target file.
         file: PathBuf,
         /// 0-based row of the data.
         row: usize,
+        /// The column at fault (`qw,qx,qy,qz` for a quaternion as a whole).
+        column: String,
         /// What is wrong with it.
         what: String,
     },

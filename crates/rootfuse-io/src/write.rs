@@ -19,8 +19,9 @@ use std::vec::Vec;
 ///
 /// Numbers are written in Rust's shortest round-trip form, so reading them back gives the same
 /// `f64` bits. `q` must have one quaternion per time stamp. What [`read_estimates`](crate::read_estimates)
-/// would refuse is refused here ([`WriteError::Unreadable`]): a time that is not finite or does
-/// not increase, a quaternion that is not finite or not of unit norm.
+/// would refuse is refused here ([`WriteError::Unreadable`], naming the row, line and column):
+/// a time that is not finite or does not increase, a quaternion that is not finite or not of
+/// unit norm. The `extra` columns may hold NaN (the reader reads it, or an empty cell, as NaN).
 pub fn write_estimates(
     path: impl AsRef<Path>,
     t: &[f64],
@@ -38,11 +39,21 @@ pub fn write_estimates(
     check_times(path, t)?;
     for (row, qi) in q.iter().enumerate() {
         let c = [qi.w, qi.x, qi.y, qi.z];
-        if c.iter().any(|v| !v.is_finite()) {
-            return unreadable(path, row, format!("quaternion {c:?} is not finite"));
+        if let Some(k) = c.iter().position(|v| !v.is_finite()) {
+            return unreadable(
+                path,
+                row,
+                QUAT[k],
+                format!("estimate value {} is not finite", c[k]),
+            );
         }
         if let Some(norm) = not_unit(&c) {
-            return unreadable(path, row, format!("quaternion has norm {norm}, not 1"));
+            return unreadable(
+                path,
+                row,
+                "qw,qx,qy,qz",
+                format!("quaternion has norm {norm}, not 1"),
+            );
         }
     }
     write_atomic(path, &names, t.len(), |i, row| {
@@ -57,10 +68,10 @@ pub fn write_estimates(
 /// Writes a whole recording in the format [`read_csv`](crate::read_csv) reads: `t`, gyroscope,
 /// accelerometer, then magnetometer, truth and `use` where present; atomically.
 ///
-/// What `read_csv` would refuse is refused here ([`WriteError::Unreadable`]): a time that is
-/// not finite or does not increase, an IMU value that is not finite (see
-/// [`write_recording_with`] to write dropped samples, read back with [`ImuGaps::Keep`]), an
-/// infinite truth component, a known truth quaternion not of unit norm.
+/// What `read_csv` would refuse is refused here ([`WriteError::Unreadable`], naming the row,
+/// line and column): a time that is not finite or does not increase, an IMU value that is not
+/// finite (see [`write_recording_with`] to write dropped samples, read back with
+/// [`ImuGaps::Keep`]), an infinite truth component, a known truth quaternion not of unit norm.
 pub fn write_recording(path: impl AsRef<Path>, rec: &Recording) -> Result<(), WriteError> {
     write_recording_with(path, rec, ImuGaps::Refuse)
 }
@@ -93,19 +104,22 @@ pub fn write_recording_with(
     check_times(path, &rec.t)?;
     if gaps == ImuGaps::Refuse {
         let sensors = [
-            ("gyroscope", Some(&rec.gyr)),
-            ("accelerometer", Some(&rec.acc)),
+            ("gyroscope", ["gx", "gy", "gz"], Some(&rec.gyr)),
+            ("accelerometer", ["ax", "ay", "az"], Some(&rec.acc)),
         ];
-        for (sensor, values) in sensors
-            .into_iter()
-            .chain([("magnetometer", rec.mag.as_ref())])
+        for (sensor, columns, values) in
+            sensors
+                .into_iter()
+                .chain([("magnetometer", MAG, rec.mag.as_ref())])
         {
-            if let Some(row) = values.and_then(|v| v.iter().position(|x| !finite(*x))) {
+            let Some(values) = values else { continue };
+            if let Some((row, k, x)) = first_not_finite(values) {
                 return unreadable(
                     path,
                     row,
+                    columns[k],
                     format!(
-                        "{sensor} value is not finite (write dropped samples with ImuGaps::Keep)"
+                        "{sensor} value {x} is not finite (write dropped samples with ImuGaps::Keep)"
                     ),
                 );
             }
@@ -114,11 +128,12 @@ pub fn write_recording_with(
     if let Some(truth) = &rec.truth {
         for (row, q) in truth.iter().enumerate() {
             let c = [q.w, q.x, q.y, q.z];
-            if c.iter().any(|v| v.is_infinite()) {
+            if let Some(k) = c.iter().position(|v| v.is_infinite()) {
                 return unreadable(
                     path,
                     row,
-                    "truth is infinite (NaN means unknown)".to_string(),
+                    QUAT[k],
+                    format!("truth value {} is infinite (NaN means unknown)", c[k]),
                 );
             }
             if let Some(norm) = (!c.iter().any(|v| v.is_nan()))
@@ -128,6 +143,7 @@ pub fn write_recording_with(
                 return unreadable(
                     path,
                     row,
+                    "qw,qx,qy,qz",
                     format!("truth quaternion has norm {norm}, not 1"),
                 );
             }
@@ -148,14 +164,22 @@ pub fn write_recording_with(
     })
 }
 
-fn finite(v: Vec3<f64>) -> bool {
-    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+/// The first value that is not finite: its row, axis (0..3) and value.
+fn first_not_finite(values: &[Vec3<f64>]) -> Option<(usize, usize, f64)> {
+    values.iter().enumerate().find_map(|(row, v)| {
+        [v.x, v.y, v.z]
+            .into_iter()
+            .enumerate()
+            .find(|(_, x)| !x.is_finite())
+            .map(|(k, x)| (row, k, x))
+    })
 }
 
-fn unreadable(file: &Path, row: usize, what: String) -> Result<(), WriteError> {
+fn unreadable(file: &Path, row: usize, column: &str, what: String) -> Result<(), WriteError> {
     Err(WriteError::Unreadable {
         file: file.to_owned(),
         row,
+        column: column.to_string(),
         what,
     })
 }
@@ -165,12 +189,13 @@ fn check_times(file: &Path, t: &[f64]) -> Result<(), WriteError> {
     let mut previous = f64::NEG_INFINITY;
     for (row, &v) in t.iter().enumerate() {
         if !v.is_finite() {
-            return unreadable(file, row, format!("time {v} is not finite"));
+            return unreadable(file, row, "t", format!("time {v} is not finite"));
         }
         if v <= previous {
             return unreadable(
                 file,
                 row,
+                "t",
                 format!("time {v} does not increase (previous {previous})"),
             );
         }

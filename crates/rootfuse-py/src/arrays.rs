@@ -4,6 +4,7 @@
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyFloat, PyInt};
 
 /// A float array read from Python, as `f64` values in C order, with its shape.
 ///
@@ -145,7 +146,7 @@ fn c_order<'py, T: numpy::Element + Copy>(
     Some(Ok((data, shape)))
 }
 
-fn dtype_name(obj: &Bound<'_, PyAny>) -> String {
+pub(crate) fn dtype_name(obj: &Bound<'_, PyAny>) -> String {
     obj.getattr("dtype")
         .and_then(|d| d.str().map(|s| s.to_string()))
         .unwrap_or_else(|_| obj.get_type().name().map_or("?".into(), |n| n.to_string()))
@@ -184,7 +185,7 @@ pub fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<FloatAr
     )))
 }
 
-fn shape_text(shape: &[usize]) -> String {
+pub(crate) fn shape_text(shape: &[usize]) -> String {
     let parts: Vec<String> = shape.iter().map(usize::to_string).collect();
     if parts.len() == 1 {
         format!("({},)", parts[0])
@@ -250,11 +251,114 @@ pub fn square(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>
     }
 }
 
-/// Checks that `got` samples of argument `name` agree with the `n` of `gyr`.
 /// The text of `obj` for a message (its `repr`).
-fn shown(obj: &Bound<'_, PyAny>) -> String {
+pub(crate) fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
 }
+
+/// The name of `obj`'s type, for a message.
+pub(crate) fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map_or_else(|_| "?".into(), |n| n.to_string())
+}
+
+/// True for Python's `bool` and NumPy's `bool_`. Both convert to numbers (`float(True)` is
+/// 1.0), but a flag where a number is meant (`kp=True`, `dt=True`) is a mistake, refused.
+pub fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
+    if obj.is_instance_of::<PyBool>() {
+        return true;
+    }
+    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
+        return false;
+    }
+    // numpy.bool_ ("bool" in NumPy 2, "bool_" in NumPy 1) is no subclass of either.
+    obj.get_type()
+        .name()
+        .is_ok_and(|n| matches!(n.to_string().as_str(), "bool" | "bool_"))
+}
+
+/// The TypeError for a bool given where a number is meant (pyo3 puts `argument 'name': `
+/// before it for a function argument).
+fn bool_given(obj: &Bound<'_, PyAny>, expected: &str) -> PyErr {
+    PyTypeError::new_err(format!(
+        "expected {expected}, got a bool ({}): booleans are not numbers here",
+        shown(obj)
+    ))
+}
+
+/// A real-number argument (`#[pyo3(from_py_with = real)]`): an int, a float or a NumPy
+/// scalar; a bool is a TypeError naming the argument.
+pub fn real(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    if is_bool(obj) {
+        return Err(bool_given(obj, "a number"));
+    }
+    obj.extract::<f64>()
+}
+
+/// [`real`] or None.
+pub fn real_or_none(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    if obj.is_none() {
+        Ok(None)
+    } else {
+        real(obj).map(Some)
+    }
+}
+
+/// A count argument (`#[pyo3(from_py_with = whole)]`): a non-negative int; a bool is a
+/// TypeError naming the argument.
+pub fn whole(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    if is_bool(obj) {
+        return Err(bool_given(obj, "a whole number"));
+    }
+    obj.extract::<usize>()
+}
+
+/// Refuses bools among the items of a sequence of numbers `name` (`[True, 0, 0]`).
+pub fn no_bool_items(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    for (i, item) in obj.try_iter()?.enumerate() {
+        let item = item?;
+        if is_bool(&item) {
+            return Err(PyTypeError::new_err(format!(
+                "{name}[{i}]: expected a number, got a bool ({}): booleans are not numbers here",
+                shown(&item)
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a square matrix `m` (`n`×`n`, C order) that is not symmetric: the worst pair must
+/// agree to 1e-9 of the largest magnitude. Only one triangle would be read, silently.
+/// Non-finite entries are left to the solver, which names their position.
+pub fn symmetric(m: &[f64], n: usize, name: &str) -> PyResult<()> {
+    let scale = m
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold(0.0_f64, |a, &x| a.max(x.abs()));
+    let mut worst = (0.0_f64, 0, 0);
+    for i in 0..n {
+        for j in i + 1..n {
+            let d = (m[i * n + j] - m[j * n + i]).abs();
+            if d > worst.0 {
+                worst = (d, i, j);
+            }
+        }
+    }
+    let (d, i, j) = worst;
+    if d.is_finite() && d > SYMMETRY_TOLERANCE * scale {
+        return Err(PyValueError::new_err(format!(
+            "{name}: not symmetric: [{i}, {j}] = {} but [{j}, {i}] = {} (difference {d:.3e}, {:.1e} of the largest entry {scale:.3e}; tolerance {SYMMETRY_TOLERANCE:.0e}): give a symmetric matrix, e.g. (a + a.T) / 2",
+            m[i * n + j],
+            m[j * n + i],
+            d / scale
+        )));
+    }
+    Ok(())
+}
+
+/// Relative asymmetry [`symmetric`] accepts.
+pub const SYMMETRY_TOLERANCE: f64 = 1e-9;
 
 /// The `dof` argument: 6 or 9. Anything else (another integer, a negative or huge one, a
 /// float) is a ValueError naming `dof`: pyo3's own conversion to `u8` raised a bare
@@ -265,6 +369,9 @@ pub struct DofArg(pub u8);
 impl<'a, 'py> FromPyObject<'a, 'py> for DofArg {
     type Error = PyErr;
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if is_bool(&obj) {
+            return Err(bool_given(&obj, "6 or 9"));
+        }
         match obj.extract::<i64>() {
             Ok(d @ (6 | 9)) => Ok(Self(d as u8)),
             _ => Err(PyValueError::new_err(format!(
@@ -282,6 +389,9 @@ pub struct SeedArg(pub u64);
 impl<'a, 'py> FromPyObject<'a, 'py> for SeedArg {
     type Error = PyErr;
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if is_bool(&obj) {
+            return Err(bool_given(&obj, "a whole number in [0, 2**64)"));
+        }
         obj.extract::<u64>().map(Self).map_err(|_| {
             PyValueError::new_err(format!(
                 "seed: expected a whole number in [0, 2**64), got {}",
@@ -291,6 +401,7 @@ impl<'a, 'py> FromPyObject<'a, 'py> for SeedArg {
     }
 }
 
+/// Checks that `got` samples of argument `name` agree with the `n` of `gyr`.
 pub fn same_length(name: &str, got: usize, n: usize) -> PyResult<()> {
     if got == n {
         Ok(())
@@ -311,6 +422,10 @@ pub fn positive(value: f64, name: &str) -> PyResult<f64> {
         )))
     }
 }
+
+/// What `dt` may be, for messages.
+const DT_EXPECTED: &str =
+    "expected a number (the step, s) or a 1-D float array of per-sample steps (s)";
 
 /// The time step before each sample, from one of `dt` (scalar or per sample) or `t`.
 #[derive(Clone, Debug)]
@@ -339,10 +454,20 @@ impl Steps {
                 "dt, t: missing the sampling: give dt (s, scalar or shape (N,)) or t (s, shape (N,))",
             )),
             (Some(dt), None) => {
-                if let Ok(x) = dt.extract::<f64>()
-                    && dt.cast::<numpy::PyUntypedArray>().is_err()
-                {
-                    return Ok(Self::Fixed(positive(x, "dt")?));
+                if dt.cast::<numpy::PyUntypedArray>().is_err() {
+                    if is_bool(dt) {
+                        return Err(PyTypeError::new_err(format!(
+                            "dt: {DT_EXPECTED}, got a bool ({}): booleans are not numbers here",
+                            shown(dt)
+                        )));
+                    }
+                    return match dt.extract::<f64>() {
+                        Ok(x) => Ok(Self::Fixed(positive(x, "dt")?)),
+                        Err(_) => Err(PyTypeError::new_err(format!(
+                            "dt: {DT_EXPECTED}, got {}",
+                            type_name(dt)
+                        ))),
+                    };
                 }
                 let v = vector(dt, "dt")?;
                 same_length("dt", v.len(), n)?;

@@ -1,7 +1,7 @@
 //! Sensor calibration from data (`rootfuse_calibration`): the batch ellipsoid fit of the
 //! model `y_cal = S·(y_raw − h)`, with its quality and what the motion left undetermined.
 
-use crate::arrays::float_array;
+use crate::arrays::{float_array, real_or_none};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -26,7 +26,7 @@ use rootfuse_calibration::{FitOptions, fit_ellipsoid};
 pub fn fit_ellipsoid_calibration<'py>(
     py: Python<'py>,
     samples: &Bound<'py, PyAny>,
-    norm: Option<f64>,
+    #[pyo3(from_py_with = real_or_none)] norm: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let a = float_array(samples, "samples")?;
     if !matches!(a.shape.as_slice(), [_, 3]) {

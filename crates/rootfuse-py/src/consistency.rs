@@ -1,6 +1,6 @@
 //! Is a filter's reported covariance honest? `rootfuse_eval::consistency` for NumPy arrays.
 
-use crate::arrays::{DofArg, float_array};
+use crate::arrays::{DofArg, float_array, real};
 use crate::eval::{alignment, compared, metric_err};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -20,7 +20,10 @@ use rootfuse_eval::consistency::{UpperTriangle, consistency as nees};
 /// "n_used", "n_invalid"}`: NEES/3 and NEES/2 are 1 and the coverages 0.95 for an honest
 /// covariance; NEES above 1 and coverage below 0.95 mean overconfident.
 #[pyfunction]
-#[pyo3(signature = (est, cov, truth, *, r#use=None, dof=DofArg(9), floor_deg=0.0, skip=0.1))]
+#[pyo3(
+    signature = (est, cov, truth, *, r#use=None, dof=DofArg(9), floor_deg=0.0, skip=0.1),
+    text_signature = "(est, cov, truth, *, use=None, dof=9, floor_deg=0.0, skip=0.1)"
+)]
 #[allow(clippy::too_many_arguments)]
 pub fn consistency<'py>(
     py: Python<'py>,
@@ -29,8 +32,8 @@ pub fn consistency<'py>(
     truth: &Bound<'py, PyAny>,
     r#use: Option<&Bound<'py, PyAny>>,
     dof: DofArg,
-    floor_deg: f64,
-    skip: f64,
+    #[pyo3(from_py_with = real)] floor_deg: f64,
+    #[pyo3(from_py_with = real)] skip: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     if !(floor_deg.is_finite() && floor_deg >= 0.0) {
         return Err(PyValueError::new_err(format!(

@@ -1,12 +1,14 @@
 //! Metrics (`rootfuse_eval::metrics`), the simulator (`rootfuse_eval::sim`) and recordings on
 //! disk (`rootfuse_io`).
 
-use crate::arrays::{DofArg, SeedArg, Steps, matrix, same_length, vector};
+use crate::arrays::{
+    DofArg, SeedArg, Steps, dtype_name, matrix, real, same_length, shape_text, type_name, vector,
+};
 use crate::filter::{Inputs, imu_arrays, recording};
-use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyIOError, PyUserWarning, PyValueError};
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyIOError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList, PyTuple};
 use rootfuse_attitude::units::{UnitCheck, Units, UnitsError};
 use rootfuse_attitude::{Quat, Recording};
 use rootfuse_eval::metrics::{self, Alignment};
@@ -19,36 +21,69 @@ fn quats(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Quat<f64>>> {
         .collect())
 }
 
-fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<bool>>> {
-    match obj {
-        None => Ok(None),
-        Some(o) if o.is_none() => Ok(None),
-        Some(o) => {
-            let v: Vec<bool> = match o.extract::<Vec<bool>>() {
-                Ok(v) => v,
-                Err(_) => {
-                    // Float arrays directly; integer arrays and lists of numbers element-wise.
-                    let values: Vec<f64> = match vector(o, "use") {
-                        Ok(v) => v.to_vec(),
-                        Err(e) => o.extract::<Vec<f64>>().map_err(|_| e)?,
-                    };
-                    // 0 or 1 only: a NaN (`x != 0.0` is true for it) would count its row.
-                    if let Some((row, x)) = values
-                        .iter()
-                        .enumerate()
-                        .find(|(_, x)| **x != 0.0 && **x != 1.0)
-                    {
-                        return Err(PyValueError::new_err(format!(
-                            "use: row {row} is {x}: expected 0 or 1 (or booleans)"
-                        )));
-                    }
-                    values.iter().map(|&x| x != 0.0).collect()
-                }
-            };
-            same_length("use", v.len(), n)?;
-            Ok(Some(v))
+/// What `use` may be, for messages.
+const USE_EXPECTED: &str =
+    "expected a 1-D array or list of N booleans (or 0/1 values), one per sample";
+
+/// The `use` argument: booleans (or 0/1 numbers) for the `n` samples of argument `of`
+/// (`est`, `gyr`).
+fn use_mask(obj: Option<&Bound<'_, PyAny>>, n: usize, of: &str) -> PyResult<Option<Vec<bool>>> {
+    let o = match obj {
+        None => return Ok(None),
+        Some(o) if o.is_none() => return Ok(None),
+        Some(o) => o,
+    };
+    match o.cast::<numpy::PyUntypedArray>() {
+        Ok(a) if a.ndim() != 1 => {
+            return Err(PyValueError::new_err(format!(
+                "use: {USE_EXPECTED}, got shape {}",
+                shape_text(a.shape())
+            )));
+        }
+        Ok(_) => {}
+        Err(_) if o.is_instance_of::<PyList>() || o.is_instance_of::<PyTuple>() => {}
+        Err(_) => {
+            return Err(PyTypeError::new_err(format!(
+                "use: {USE_EXPECTED}, got {}",
+                type_name(o)
+            )));
         }
     }
+    let v: Vec<bool> = match o.extract::<Vec<bool>>() {
+        Ok(v) => v,
+        Err(_) => {
+            // Float arrays directly; integer arrays and lists of numbers element-wise.
+            let values: Vec<f64> = match vector(o, "use") {
+                Ok(v) => v,
+                Err(_) => o.extract::<Vec<f64>>().map_err(|_| {
+                    let got = if o.cast::<numpy::PyUntypedArray>().is_ok() {
+                        format!("an array of dtype {}", dtype_name(o))
+                    } else {
+                        format!("a {} holding other values", type_name(o))
+                    };
+                    PyTypeError::new_err(format!("use: {USE_EXPECTED}, got {got}"))
+                })?,
+            };
+            // 0 or 1 only: a NaN (`x != 0.0` is true for it) would count its row.
+            if let Some((row, x)) = values
+                .iter()
+                .enumerate()
+                .find(|(_, x)| **x != 0.0 && **x != 1.0)
+            {
+                return Err(PyValueError::new_err(format!(
+                    "use: row {row} is {x}: expected 0 or 1 (or booleans)"
+                )));
+            }
+            values.iter().map(|&x| x != 0.0).collect()
+        }
+    };
+    if v.len() != n {
+        return Err(PyValueError::new_err(format!(
+            "use: has {} samples but {of} has {n}; use marks each sample of {of}",
+            v.len()
+        )));
+    }
+    Ok(Some(v))
 }
 
 /// Estimates, truth (both `(N, 4)`, same N) and the optional use mask.
@@ -89,7 +124,7 @@ pub(crate) fn compared(
             e.len()
         )));
     }
-    let mask = use_mask(r#use, e.len())?;
+    let mask = use_mask(r#use, e.len(), "est")?;
     Ok((e, t, mask))
 }
 
@@ -116,7 +151,10 @@ pub(crate) fn metric_err(e: metrics::MetricsError) -> PyErr {
 /// BROAD does for 6D estimates. Returns `{"total", "heading", "inclination", "n_used",
 /// "heading_offset"}` (degrees; the offset removed, 0 for 9D).
 #[pyfunction]
-#[pyo3(signature = (est, truth, *, r#use=None, dof=DofArg(9)))]
+#[pyo3(
+    signature = (est, truth, *, r#use=None, dof=DofArg(9)),
+    text_signature = "(est, truth, *, use=None, dof=9)"
+)]
 pub fn rmse<'py>(
     py: Python<'py>,
     est: &Bound<'py, PyAny>,
@@ -139,7 +177,10 @@ pub fn rmse<'py>(
 /// `dof` (see `rmse`). Returns `{"total", "heading", "inclination"}` float64 `(N,)`, `"used"`
 /// bool `(N,)` and `"heading_offset"` (degrees).
 #[pyfunction]
-#[pyo3(signature = (est, truth, *, r#use=None, dof=DofArg(9)))]
+#[pyo3(
+    signature = (est, truth, *, r#use=None, dof=DofArg(9)),
+    text_signature = "(est, truth, *, use=None, dof=9)"
+)]
 pub fn error_series<'py>(
     py: Python<'py>,
     est: &Bound<'py, PyAny>,
@@ -162,7 +203,7 @@ pub fn error_series<'py>(
 /// The 6D heading offset, degrees in (−180, 180]: the circular mean heading of `est` relative
 /// to `truth` over the counted samples; None when undefined.
 #[pyfunction]
-#[pyo3(signature = (est, truth, *, r#use=None))]
+#[pyo3(signature = (est, truth, *, r#use=None), text_signature = "(est, truth, *, use=None)")]
 pub fn heading_offset(
     est: &Bound<'_, PyAny>,
     truth: &Bound<'_, PyAny>,
@@ -208,13 +249,16 @@ fn recording_dict<'py>(py: Python<'py>, rec: Recording) -> PyResult<Bound<'py, P
 /// Simulates an IMU with the named preset (`scenario_names()`), seeded: returns a recording
 /// dict (see `read_csv`) with the true orientation in `truth`. `duration_s` s, `rate_hz` Hz.
 #[pyfunction]
-#[pyo3(signature = (scenario, *, seed=SeedArg(0), duration_s=10.0, rate_hz=100.0))]
+#[pyo3(
+    signature = (scenario, *, seed=SeedArg(0), duration_s=10.0, rate_hz=100.0),
+    text_signature = "(scenario, *, seed=0, duration_s=10.0, rate_hz=100.0)"
+)]
 pub fn simulate<'py>(
     py: Python<'py>,
     scenario: &str,
     seed: SeedArg,
-    duration_s: f64,
-    rate_hz: f64,
+    #[pyo3(from_py_with = real)] duration_s: f64,
+    #[pyo3(from_py_with = real)] rate_hz: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rec = py
         .detach(|| rootfuse_eval::sim::scenario(scenario, seed.0, duration_s, rate_hz))
@@ -285,8 +329,16 @@ pub fn read_csv<'py>(
 /// Writes a recording in the format `read_csv` reads, atomically (temporary file, then
 /// rename). `t` `(N,)` s, `gyr`, `acc`, `mag` (or None) `(N, 3)`, `truth` `(N, 4)` or None,
 /// `use` bool `(N,)` or None. Numbers are written in shortest round-trip form.
+///
+/// What `read_csv` would refuse is not written: a time that is not finite or does not
+/// increase, a NaN/inf IMU value, an infinite truth value (NaN means unknown), a known truth
+/// quaternion off unit norm are a ValueError naming the row, the line the reader would
+/// report and the column; nothing is written then. A file that cannot be written is OSError.
 #[pyfunction]
-#[pyo3(signature = (path, t, gyr, acc, mag=None, *, truth=None, r#use=None))]
+#[pyo3(
+    signature = (path, t, gyr, acc, mag=None, *, truth=None, r#use=None),
+    text_signature = "(path, t, gyr, acc, mag=None, *, truth=None, use=None)"
+)]
 #[allow(clippy::too_many_arguments)]
 pub fn write_recording(
     py: Python<'_>,
@@ -309,16 +361,29 @@ pub fn write_recording(
         }
         _ => None,
     };
-    let mask = use_mask(r#use, n)?;
+    let mask = use_mask(r#use, n, "gyr")?;
     let steps = Steps::Times(t.clone());
     let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, t, truth, mask);
     py.detach(|| rootfuse_io::write_recording(&path, &rec))
-        .map_err(|e| PyIOError::new_err(e.to_string()))
+        .map_err(write_error)
+}
+
+/// OSError for a file that cannot be written; ValueError for data its reader would refuse
+/// (naming row, line and column) and for bad column names or lengths.
+fn write_error(e: rootfuse_io::WriteError) -> PyErr {
+    match e {
+        rootfuse_io::WriteError::Io { .. } => PyIOError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
 }
 
 /// Writes estimates as CSV `t,qw,qx,qy,qz` plus `extra` columns (`{name: (N,) array}`),
 /// atomically, in the format `rootfuse run` writes. `t` `(N,)` s, `quat` `(N, 4)`.
+///
+/// What `read_estimates` would refuse is not written (ValueError naming row, line and
+/// column): a time that is not finite or does not increase, a quaternion that is not finite
+/// or not of unit norm. `extra` columns may hold NaN (read back as NaN).
 #[pyfunction]
 #[pyo3(signature = (path, t, quat, extra=None))]
 pub fn write_estimates(
@@ -346,13 +411,15 @@ pub fn write_estimates(
         .map(|(n, v)| (n.as_str(), v.as_slice()))
         .collect();
     py.detach(|| rootfuse_io::write_estimates(&path, &t, &q, &refs))
-        .map_err(|e| match e {
-            rootfuse_io::WriteError::Io { .. } => PyIOError::new_err(e.to_string()),
-            _ => PyValueError::new_err(e.to_string()),
-        })
+        .map_err(write_error)
 }
 
-/// Reads an estimates CSV (`t,qw,qx,qy,qz`, extra columns ignored): `{"t": (N,), "quat": (N, 4)}`.
+/// Reads an estimates CSV (`t,qw,qx,qy,qz` and any other columns): `{"t": (N,), "quat":
+/// (N, 4)}` plus every other column as a float64 `(N,)` array under its name (`bx`, `by`,
+/// `bz`, `p_xx`..`p_zz`, `flags`, ...; an empty cell is NaN; a column named `t` or `quat`
+/// cannot occur besides those two).
+///
+/// A malformed file raises ValueError naming file, line and column; a missing one OSError.
 #[pyfunction]
 pub fn read_estimates<'py>(
     py: Python<'py>,
@@ -367,6 +434,11 @@ pub fn read_estimates<'py>(
     let n = est.t.len();
     let q: Vec<f64> = est.quat.iter().flat_map(|q| [q.w, q.x, q.y, q.z]).collect();
     let d = PyDict::new(py);
+    // The named columns first: `t` and `quat` are set last and always are the time and
+    // quaternion (a column literally named `quat` would otherwise replace them).
+    for (name, values) in est.extra {
+        d.set_item(name, PyArray1::from_vec(py, values))?;
+    }
     d.set_item("t", PyArray1::from_vec(py, est.t))?;
     d.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
     Ok(d)

@@ -3,13 +3,14 @@
 
 use crate::arrays::{self, DofArg, Steps, same_length, sensor_matrix};
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use rootfuse_attitude::filters::Rejections;
+use rootfuse_attitude::filters::{ParamKind, Rejections};
 use rootfuse_attitude::registry::{AnyFilter, FilterKind, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
+use std::sync::{Mutex, MutexGuard, TryLockError};
 
 /// Parses `precision` ("f32" or "f64").
 pub fn precision(text: &str) -> PyResult<Precision> {
@@ -31,11 +32,36 @@ pub fn spec_from(
     let mut spec =
         FilterSpec::new(name).map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
     if let Some(params) = params {
+        let kind = spec.kind();
         for (key, value) in params.iter() {
             let key: String = key.extract()?;
+            // Names are exact: the registry's `key=value` text would trim " kp " to `kp`.
+            // (`dof` goes to the registry, which says which filters have one.)
+            let info = kind.params().iter().find(|p| p.name == key);
+            if info.is_none() && key != "dof" {
+                let valid: Vec<&str> = kind.params().iter().map(|p| p.name).collect();
+                let hint = if key.trim() != key {
+                    " (parameter names are exact: no spaces)"
+                } else {
+                    ""
+                };
+                return Err(PyValueError::new_err(format!(
+                    "{key}: unknown parameter {key:?} of {}{hint} (valid: {})",
+                    kind.name(),
+                    valid.join(", ")
+                )));
+            }
             if value.is_instance_of::<pyo3::types::PyString>() {
                 return Err(PyTypeError::new_err(format!(
                     "{key}: expected a number, got a string"
+                )));
+            }
+            // A switch (0 or 1) takes a bool; anywhere else a bool is a mistake (`kp=True`).
+            let switch = info.is_some_and(|p| matches!(p.kind, ParamKind::Switch));
+            if !switch && arrays::is_bool(&value) {
+                return Err(PyTypeError::new_err(format!(
+                    "{key}: expected a number, got a bool ({}): booleans are not numbers here",
+                    arrays::shown(&value)
                 )));
             }
             let v: f64 = value.extract().map_err(|_| {
@@ -279,31 +305,66 @@ macro_rules! with_state {
 
 /// An orientation filter from the registry, by name, in f32 or f64.
 ///
-/// `Filter(name, dof=None, precision="f64", **params)`: `name` is a registered filter
+/// `Filter(name, *, dof=None, precision="f64", **params)`: `name` is a registered filter
 /// (`filters()` lists them, with every parameter, its unit, default and range; `"flagship"`
 /// is `"sqrt-eskf"`); parameters are keyword arguments validated by the registry (a
-/// ValueError names the parameter and the accepted range); `dof` 6 (gyroscope and
-/// accelerometer) or 9 (with magnetometer; the default of filters that have the choice;
-/// `gyro` has none, and a `dof` for it is a ValueError).
+/// ValueError names the parameter and the accepted range; names are exact, a bool is no
+/// number); `dof` (keyword only) 6 (gyroscope and accelerometer) or 9 (with magnetometer;
+/// the default of filters that have the choice; `gyro` has none, and a `dof` for it is a
+/// ValueError).
 ///
 /// Conventions: quaternions `[w, x, y, z]`, sensor to earth, earth ENU; gyroscope rad/s,
 /// accelerometer m/s² (+g up at rest), magnetometer any consistent unit, time s.
-#[pyclass(module = "rootfuse._rootfuse")]
+///
+/// A Filter is used by one thread at a time: while `update_batch` runs (the GIL released),
+/// any call on the same Filter from another thread is a RuntimeError. Make one Filter per
+/// thread.
+#[pyclass(frozen, module = "rootfuse._rootfuse")]
 pub struct Filter {
     spec: FilterSpec,
-    state: State,
+    precision: Precision,
+    /// The filter, locked by the call using it (`update_batch` holds it without the GIL).
+    state: Mutex<State>,
 }
+
+/// What a second thread gets instead of pyo3's "Already borrowed".
+const BUSY: &str = "a Filter is used by one thread at a time (another thread is running this one, e.g. in update_batch, which releases the GIL): make one Filter per thread";
 
 impl Filter {
     fn build(spec: FilterSpec, precision: Precision) -> Self {
-        let state = match precision {
+        let state = Self::fresh(&spec, precision);
+        Self {
+            spec,
+            precision,
+            state: Mutex::new(state),
+        }
+    }
+    fn fresh(spec: &FilterSpec, precision: Precision) -> State {
+        match precision {
             Precision::F32 => State::F32(spec.build()),
             Precision::F64 => State::F64(spec.build()),
-        };
-        Self { spec, state }
+        }
     }
-    fn has_covariance(&self) -> bool {
-        with_state!(&self.state, f => f.attitude_covariance().is_some())
+    /// The state, or the RuntimeError [`BUSY`] while another thread holds it. A panic in an
+    /// earlier call left the state as it was then: it is used as it is.
+    fn lock(&self) -> PyResult<MutexGuard<'_, State>> {
+        match self.state.try_lock() {
+            Ok(state) => Ok(state),
+            Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
+            Err(TryLockError::WouldBlock) => Err(PyRuntimeError::new_err(BUSY)),
+        }
+    }
+    fn kind_name(&self) -> &'static str {
+        self.spec.kind().name()
+    }
+    fn precision_name(&self) -> &'static str {
+        match self.precision {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+    fn dof_count(&self) -> Option<u8> {
+        self.spec.dof().map(Dof::count)
     }
 }
 
@@ -336,7 +397,7 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
     // The per-sample path: a plain sequence of three numbers is read directly, without
     // building an error for the array path first.
     if obj.cast::<numpy::PyUntypedArray>().is_err() {
-        return obj.extract::<[f64; 3]>().map_err(|_| {
+        let v = obj.extract::<[f64; 3]>().map_err(|_| {
             let len = obj
                 .len()
                 .map_or(String::new(), |n| format!(", got {n} values"));
@@ -345,7 +406,9 @@ fn vec3_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
             } else {
                 PyTypeError::new_err(format!("{name}: expected three numbers"))
             }
-        });
+        })?;
+        arrays::no_bool_items(obj, name)?;
+        return Ok(v);
     }
     let a = arrays::float_array(obj, name)?;
     match a.as_slice() {
@@ -366,9 +429,13 @@ fn quat_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 4]> {
                 a.shape
             )));
         }
-        Err(_) => obj
-            .extract()
-            .map_err(|_| PyTypeError::new_err(format!("{name}: expected four numbers")))?,
+        Err(_) => {
+            let v: Vec<f64> = obj
+                .extract()
+                .map_err(|_| PyTypeError::new_err(format!("{name}: expected four numbers")))?;
+            arrays::no_bool_items(obj, name)?;
+            v
+        }
     };
     match v.as_slice() {
         [w, x, y, z] if v.iter().all(|c| c.is_finite()) && v.iter().any(|&c| c != 0.0) => {
@@ -397,22 +464,19 @@ impl Filter {
     /// The registered name of the filter (`"flagship"` gives `"sqrt-eskf"`).
     #[getter]
     fn name(&self) -> &'static str {
-        self.spec.kind().name()
+        self.kind_name()
     }
 
     /// `"f32"` or `"f64"`.
     #[getter]
     fn precision(&self) -> &'static str {
-        match self.state {
-            State::F32(_) => "f32",
-            State::F64(_) => "f64",
-        }
+        self.precision_name()
     }
 
     /// 6 or 9 (None for `gyro`, which never reads the magnetometer).
     #[getter]
     fn dof(&self) -> Option<u8> {
-        self.spec.dof().map(Dof::count)
+        self.dof_count()
     }
 
     /// Every parameter's current value, `{name: value}` (units: see `filters()`).
@@ -439,26 +503,31 @@ impl Filter {
     /// Returns a dict of float64 arrays: `quat` `(N, 4)` `[w, x, y, z]` after each sample;
     /// `bias` `(N, 3)` gyro-bias estimate, rad/s (zeros for filters without one);
     /// `covariance` `(N, 3, 3)` attitude-error covariance, rad², earth frame (only for filters
-    /// that carry one: `sqrt-eskf`, `ekf`, ...); `flags` `(N,)` uint8 per sample: 1 dt, 2
-    /// gyroscope (whole sample skipped), 4 accelerometer, 8 magnetometer (correction
-    /// skipped), 16 gated by the filter, 32 at rest, 64 magnetic disturbance. NaN/inf inside
-    /// the arrays are not errors: that sample (or correction) is skipped and flagged.
-    #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None))]
+    /// that carry one: `sqrt-eskf`, `ekf`, ...; `covariance=False` leaves it out, 72 bytes
+    /// a sample); `flags` `(N,)` uint8 per sample: 1 dt, 2 gyroscope (whole sample skipped),
+    /// 4 accelerometer, 8 magnetometer (correction skipped), 16 gated by the filter, 32 at
+    /// rest, 64 magnetic disturbance. NaN/inf inside the arrays are not errors: that sample
+    /// (or correction) is skipped and flagged.
+    #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None, covariance=true))]
+    #[allow(clippy::too_many_arguments)]
     fn update_batch<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         gyr: &Bound<'py, PyAny>,
         acc: &Bound<'py, PyAny>,
         mag: Option<&Bound<'py, PyAny>>,
         dt: Option<&Bound<'py, PyAny>>,
         t: Option<&Bound<'py, PyAny>>,
+        covariance: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
         let steps = Steps::parse(dt, t, n)?;
-        let with_cov = self.has_covariance();
+        let mut guard = self.lock()?;
+        let state: &mut State = &mut guard;
+        let with_cov = covariance && has_covariance(state);
         let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
-        let state = &mut self.state;
         let series = py.detach(|| with_state!(state, f => run_series(f, &input, with_cov)));
+        drop(guard);
         let out = PyDict::new(py);
         out.set_item("quat", PyArray1::from_vec(py, series.quat).reshape([n, 4])?)?;
         out.set_item("bias", PyArray1::from_vec(py, series.bias).reshape([n, 3])?)?;
@@ -477,11 +546,11 @@ impl Filter {
     /// state is in `quat`, `bias`, `covariance`. NaN/inf values are skipped and flagged.
     #[pyo3(signature = (gyr, acc, mag=None, *, dt))]
     fn update(
-        &mut self,
+        &self,
         gyr: &Bound<'_, PyAny>,
         acc: &Bound<'_, PyAny>,
         mag: Option<&Bound<'_, PyAny>>,
-        dt: f64,
+        #[pyo3(from_py_with = arrays::real)] dt: f64,
     ) -> PyResult<u8> {
         let g = vec3_arg(gyr, "gyr")?;
         let a = vec3_arg(acc, "acc")?;
@@ -492,52 +561,57 @@ impl Filter {
             }
             _ => ImuSample::six_d(Vec3::from_f64(g), Vec3::from_f64(a)),
         };
-        Ok(with_state!(&mut self.state, f => step(f, &s, dt)))
+        let mut state = self.lock()?;
+        Ok(with_state!(&mut *state, f => step(f, &s, dt)))
     }
 
     /// Current orientation `[w, x, y, z]` (sensor to earth, ENU), float64 `(4,)`.
     #[getter]
-    fn quat<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        let q = with_state!(&self.state, f => {
+    fn quat<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let q = with_state!(&*self.lock()?, f => {
             let q = f.quat();
             [widen(q.w), widen(q.x), widen(q.y), widen(q.z)]
         });
-        PyArray1::from_slice(py, &q)
+        Ok(PyArray1::from_slice(py, &q))
     }
 
-    /// Current gyro-bias estimate, rad/s, float64 `(3,)` (zeros for filters without one).
+    /// Current gyro-bias estimate, rad/s, float64 `(3,)` (zeros for filters without one;
+    /// `heading-pipeline` estimates the component about earth-up only).
     #[getter]
-    fn bias<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        let b = with_state!(&self.state, f => {
+    fn bias<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let b = with_state!(&*self.lock()?, f => {
             let b = f.bias();
             [widen(b.x), widen(b.y), widen(b.z)]
         });
-        PyArray1::from_slice(py, &b)
+        Ok(PyArray1::from_slice(py, &b))
     }
 
     /// Current attitude-error covariance, rad², earth frame ENU (`[2, 2]` is heading),
     /// float64 `(3, 3)`; None for filters without one.
     #[getter]
-    fn covariance<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray2<f64>>> {
-        let p = with_state!(&self.state, f => f
+    fn covariance<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<Bound<'py, numpy::PyArray2<f64>>>> {
+        let p = with_state!(&*self.lock()?, f => f
             .attitude_covariance()
-            .map(|p| p.m.iter().flatten().map(|&x| widen(x)).collect::<Vec<f64>>()))?;
-        let a = Array2::from_shape_vec((3, 3), p).ok()?;
-        Some(numpy::IntoPyArray::into_pyarray(a, py))
+            .map(|p| p.m.iter().flatten().map(|&x| widen(x)).collect::<Vec<f64>>()));
+        Ok(p.and_then(|p| Array2::from_shape_vec((3, 3), p).ok())
+            .map(|a| numpy::IntoPyArray::into_pyarray(a, py)))
     }
 
     /// What was skipped since the filter was built or reset, by reason:
     /// `{"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}` counts.
     #[getter]
     fn rejections<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let r = with_state!(&self.state, f => totals(f.rejections()));
+        let r = with_state!(&*self.lock()?, f => totals(f.rejections()));
         rejections_dict(py, &r)
     }
 
     /// Sets the orientation `[w, x, y, z]` (sensor to earth, ENU; normalised by the filter)
     /// and marks the filter initialised: the next samples correct from there instead of
     /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
-    fn set_quat(&mut self, q: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_quat(&self, q: &Bound<'_, PyAny>) -> PyResult<()> {
         let q = quat_arg(q, "q")?;
         // Normalising a quaternion far from unit norm hides a mistake (a vector of tiny
         // numbers became the identity in f32).
@@ -547,13 +621,19 @@ impl Filter {
                 "q: norm {norm:.3e} is far from 1: expected a unit quaternion [w, x, y, z] (a small deviation is normalised)"
             )));
         }
-        with_state!(&mut self.state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
+        let mut state = self.lock()?;
+        with_state!(&mut *state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
         Ok(())
     }
 
-    /// Sets the gyro-bias estimate, rad/s (sensor frame, 3 numbers). Returns False (and
-    /// changes nothing) for filters without a bias estimate.
-    fn set_bias(&mut self, bias: &Bound<'_, PyAny>) -> PyResult<bool> {
+    /// Sets the gyro-bias estimate, rad/s (sensor frame, 3 numbers), kept from there (also
+    /// before the first sample). Returns False (and changes nothing) for filters without a
+    /// bias estimate (`gyro`, `complementary`) and for `heading-pipeline`, whose estimate is
+    /// one component (the heading rate about earth-up) and cannot hold a three-axis bias.
+    /// `complementary-reconstruction` takes it in place of its still-period mean once the
+    /// still period (`still_s`) is over, False during it (the mean is being taken);
+    /// `lsq-fusion` clamps it to `drift_max`, as every estimate of its drift.
+    fn set_bias(&self, bias: &Bound<'_, PyAny>) -> PyResult<bool> {
         let b = vec3_arg(bias, "bias")?;
         if !b.iter().all(|x| x.is_finite()) {
             return Err(PyValueError::new_err(format!(
@@ -561,43 +641,49 @@ impl Filter {
             )));
         }
         // Checked in the filter's precision: 1e39 is finite in f64 and infinite in f32.
-        if matches!(self.state, State::F32(_)) && b.iter().any(|x| x.abs() > f64::from(f32::MAX)) {
+        if self.precision == Precision::F32 && b.iter().any(|x| x.abs() > f64::from(f32::MAX)) {
             return Err(PyValueError::new_err(format!(
                 "bias: {b:?} is not representable in this f32 filter (|value| > {:e}): expected rad/s",
                 f32::MAX
             )));
         }
-        Ok(with_state!(&mut self.state, f => f.set_bias(Vec3::from_f64(b))))
+        let mut state = self.lock()?;
+        Ok(with_state!(&mut *state, f => f.set_bias(Vec3::from_f64(b))))
     }
 
     /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
     /// from north) becomes `heading`; the inclination is kept.
-    fn set_heading(&mut self, heading: f64) -> PyResult<()> {
+    fn set_heading(&self, #[pyo3(from_py_with = arrays::real)] heading: f64) -> PyResult<()> {
         if !heading.is_finite() {
             return Err(PyValueError::new_err(format!(
                 "heading: expected a finite angle in rad, got {heading}"
             )));
         }
-        with_state!(&mut self.state, f => f.set_heading(Lane::from_f64(heading)));
+        let mut state = self.lock()?;
+        with_state!(&mut *state, f => f.set_heading(Lane::from_f64(heading)));
         Ok(())
     }
 
     /// Back to the state just after construction (same parameters and precision).
-    fn reset(&mut self) {
-        self.state = match self.state {
-            State::F32(_) => State::F32(self.spec.build()),
-            State::F64(_) => State::F64(self.spec.build()),
-        };
+    fn reset(&self) -> PyResult<()> {
+        let fresh = Self::fresh(&self.spec, self.precision);
+        *self.lock()? = fresh;
+        Ok(())
     }
 
     fn __repr__(&self) -> String {
         format!(
             "Filter({:?}, dof={}, precision={:?})",
-            self.name(),
-            self.dof().map_or("None".into(), |d| d.to_string()),
-            self.precision()
+            self.kind_name(),
+            self.dof_count().map_or("None".into(), |d| d.to_string()),
+            self.precision_name()
         )
     }
+}
+
+/// Whether the filter in `state` carries an attitude covariance.
+fn has_covariance(state: &State) -> bool {
+    with_state!(state, f => f.attitude_covariance().is_some())
 }
 
 /// The counters as a dict.

@@ -4,7 +4,7 @@
 //! `rootfuse run` on a Parquet or Arrow file (`rootfuse_columnar`), so each device's
 //! estimates equal the CLI's bit for bit.
 
-use crate::arrays::DofArg;
+use crate::arrays::{DofArg, type_name};
 use crate::filter::{precision, spec_from};
 use arrow::array::{RecordBatch, RecordBatchReader};
 use arrow::datatypes::SchemaRef;
@@ -246,14 +246,22 @@ pub fn estimate_arrow(
     bias: bool,
     covariance: bool,
     flags: bool,
-    device_params: Option<&Bound<'_, PyDict>>,
+    device_params: Option<&Bound<'_, PyAny>>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<EstimateStream> {
     let prec = self::precision(precision)?;
     let spec = spec_from(filter, dof, params)?;
     let (labels, device_specs) = match device_params {
-        Some(table) => per_device_specs(py, table, filter, dof, params)?,
-        None => (Vec::new(), Vec::new()),
+        Some(table) if !table.is_none() => {
+            let table = table.cast::<PyDict>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "device_params: expected a dict {{device: {{name: value}}}} (rootfuse.arrow's functions also take a table with a `device` column), got {}",
+                    type_name(table)
+                ))
+            })?;
+            per_device_specs(py, table, filter, dof, params)?
+        }
+        _ => (Vec::new(), Vec::new()),
     };
     let devices = Devices::planned(&labels).map_err(|i| {
         PyValueError::new_err(format!(

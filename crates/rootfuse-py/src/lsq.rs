@@ -1,10 +1,10 @@
 //! Least squares: the six recursive forms (`rootfuse_lsq::rls`) sample by sample and over
 //! whole arrays, the dense weighted solvers (`rootfuse_lsq::dense`) and the stress scenarios.
 
-use crate::arrays::{float_array, square, vector};
+use crate::arrays::{float_array, is_bool, real, real_or_none, square, symmetric, vector, whole};
 use crate::filter::precision;
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use rootfuse_batch::Precision;
@@ -202,9 +202,10 @@ fn build(
 /// `"potter"`, `"bierman-ud"`, `"inverse-qr"`, `"information-qr"`), state size `n` = 1..8,
 /// f32 or f64.
 ///
-/// `Rls(form, n, *, x0=None, p0=1e6, lam=1.0, p_min=None, p_max=None, compensated=True,
-/// precision="f64")`: prior estimate `x0` (`(n,)`, zeros by default) and covariance `p0` (a
-/// number for `p0·I`, or `(n, n)`, squared units of x); forgetting factor `lam` in (0, 1]
+/// `Rls(form, n, *, x0=None, p0=None, lam=1.0, p_min=None, p_max=None, compensated=True,
+/// precision="f64")`: prior estimate `x0` (`(n,)`, zeros by default) and covariance `p0`
+/// (None for `1e6·I`, a number for `p0·I`, or `(n, n)` symmetric, squared units of x: an asymmetry beyond 1e-9 of
+/// its largest entry is a ValueError naming the worst pair); forgetting factor `lam` in (0, 1]
 /// (memory about 1/(1−lam) samples); optional windup protection keeping every eigenvalue of
 /// P in `[p_min, p_max]`; `compensated` selects compensated sums in the information form.
 ///
@@ -223,12 +224,12 @@ impl Rls {
     #[allow(clippy::too_many_arguments)]
     fn new(
         form: &str,
-        n: usize,
+        #[pyo3(from_py_with = whole)] n: usize,
         x0: Option<&Bound<'_, PyAny>>,
         p0: Option<&Bound<'_, PyAny>>,
-        lam: f64,
-        p_min: Option<f64>,
-        p_max: Option<f64>,
+        #[pyo3(from_py_with = real)] lam: f64,
+        #[pyo3(from_py_with = real_or_none)] p_min: Option<f64>,
+        #[pyo3(from_py_with = real_or_none)] p_max: Option<f64>,
         compensated: bool,
         precision: &str,
     ) -> PyResult<Self> {
@@ -253,6 +254,11 @@ impl Rls {
         };
         let p0 = match p0 {
             None => identity(n, 1e6),
+            Some(p) if is_bool(p) => {
+                return Err(PyTypeError::new_err(
+                    "p0: expected a number or an (n, n) matrix, got a bool: booleans are not numbers here",
+                ));
+            }
             Some(p) => match p.extract::<f64>() {
                 Ok(s) if p.cast::<numpy::PyUntypedArray>().is_err() => {
                     if !(s.is_finite() && s > 0.0) {
@@ -262,7 +268,12 @@ impl Rls {
                     }
                     identity(n, s)
                 }
-                _ => square(p, "p0", n)?,
+                _ => {
+                    let m = square(p, "p0", n)?;
+                    // The forms read one triangle: an asymmetric prior would be used halfway.
+                    symmetric(&m, n, "p0")?;
+                    m
+                }
             },
         };
         let mut config = RlsConfig::new(lam);
@@ -303,7 +314,12 @@ impl Rls {
     /// One scalar measurement `z = hᵀx + v` (h: `(n,)`, weight `1/var(v)`), forgetting first.
     /// Returns True if applied, False if rejected (counted in `health`).
     #[pyo3(signature = (h, z, weight=1.0))]
-    fn update(&mut self, h: &Bound<'_, PyAny>, z: f64, weight: f64) -> PyResult<bool> {
+    fn update(
+        &mut self,
+        h: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = real)] z: f64,
+        #[pyo3(from_py_with = real)] weight: f64,
+    ) -> PyResult<bool> {
         let h = vector(h, "h")?;
         check_n("h", h.len(), self.inner.n())?;
         Ok(self.inner.update(&h, z, weight))
@@ -337,6 +353,11 @@ impl Rls {
         check_len("z", z.len(), k)?;
         let w = match weights {
             None => vec![1.0; k],
+            Some(w) if is_bool(w) => {
+                return Err(PyTypeError::new_err(
+                    "weights: expected a number or a (K,) array, got a bool: booleans are not numbers here",
+                ));
+            }
             Some(w) => match w.extract::<f64>() {
                 Ok(s) if w.cast::<numpy::PyUntypedArray>().is_err() => vec![s; k],
                 _ => {
@@ -384,7 +405,11 @@ impl Rls {
     /// `health`). ValueError for another form, or when covariance bounds are set (a general
     /// transition would void them).
     #[pyo3(signature = (f, lam=1.0))]
-    fn predict(&mut self, f: &Bound<'_, PyAny>, lam: f64) -> PyResult<bool> {
+    fn predict(
+        &mut self,
+        f: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = real)] lam: f64,
+    ) -> PyResult<bool> {
         let n = self.inner.n();
         let f = square(f, "f", n)?;
         self.inner
@@ -547,10 +572,12 @@ enum LsqWeights {
 /// Weighted linear least squares `min ‖W^½ (z − H x)‖₂` by a dense factorisation.
 ///
 /// `h` `(m, n)`, `z` `(m,)`; `weights` `(m,)` (`W = diag(w)`, `w ≥ 0`) or `covariance`
-/// `(m, m)` (`W = R⁻¹`, R symmetric positive definite), not both. `method`: `"qr"` (full rank
-/// required), `"pivoted-qr"` (basic solution when rank deficient), `"svd"` (minimum-norm
-/// solution) or `"normal-equations"` (a comparison: raises ValueError reporting Cholesky
-/// breakdown or ill-conditioning where it would lose every digit). Returns a dict:
+/// `(m, m)` (`W = R⁻¹`, R symmetric positive definite: an asymmetry beyond 1e-9 of its
+/// largest entry is a ValueError naming the worst pair), not both. `method`: `"qr"` (full
+/// rank required), `"pivoted-qr"` (basic solution when rank deficient), `"svd"`
+/// (minimum-norm solution) or `"normal-equations"` (a comparison: raises ValueError
+/// reporting Cholesky breakdown or ill-conditioning where it would lose every digit).
+/// `rank_tolerance`: relative, finite and ≥ 0 (None: `max(m, n)·ε`). Returns a dict:
 /// `estimate` `(n,)`, `residuals` `(m,)` (unweighted), `covariance` `(n, n)` = `(HᵀWH)⁻¹`
 /// (not scaled by the residual variance), `rss`, `dof`, `residual_variance`, `r_squared`,
 /// `condition`, `rank`. Every failure (sizes, non-finite values naming their position, rank
@@ -565,11 +592,18 @@ pub fn lstsq<'py>(
     weights: Option<&Bound<'py, PyAny>>,
     covariance: Option<&Bound<'py, PyAny>>,
     method: &str,
-    rank_tolerance: Option<f64>,
+    #[pyo3(from_py_with = real_or_none)] rank_tolerance: Option<f64>,
     equilibrate: bool,
-    refinement_steps: usize,
+    #[pyo3(from_py_with = whole)] refinement_steps: usize,
     precision: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    if let Some(tol) = rank_tolerance
+        && !(tol.is_finite() && tol >= 0.0)
+    {
+        return Err(PyValueError::new_err(format!(
+            "rank_tolerance: expected a finite number ≥ 0 (relative to the largest diagonal entry of R or singular value; None: max(m, n)·ε), got {tol}"
+        )));
+    }
     let ha = float_array(h, "h")?;
     let (m, n) = match *ha.shape.as_slice() {
         [m, n] => (m, n),
@@ -603,7 +637,12 @@ pub fn lstsq<'py>(
             }
             LsqWeights::Diagonal(v)
         }
-        (None, Some(r)) => LsqWeights::Covariance(square(r, "covariance", m)?, m),
+        (None, Some(r)) => {
+            let r = square(r, "covariance", m)?;
+            // The solver factors one triangle: an asymmetric R would be used halfway.
+            symmetric(&r, m, "covariance")?;
+            LsqWeights::Covariance(r, m)
+        }
         (None, None) => LsqWeights::Unit,
     };
     let method = self::method(method)?;
@@ -643,7 +682,7 @@ pub fn lstsq<'py>(
 pub fn stress<'py>(
     py: Python<'py>,
     scenario: Option<&str>,
-    scale: f64,
+    #[pyo3(from_py_with = real)] scale: f64,
     long: bool,
 ) -> PyResult<Bound<'py, PyList>> {
     crate::arrays::positive(scale, "scale")?;

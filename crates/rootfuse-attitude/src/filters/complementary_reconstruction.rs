@@ -350,6 +350,15 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
     fn bias(&self) -> Vec3<T> {
         self.still.bias
     }
+    /// Replaces the still-period mean once the still period is over (in every lane); `false`
+    /// (and nothing changed) during it, while the mean is being taken.
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        if self.still.elapsed.simd_lt(self.still_s).any() {
+            return false;
+        }
+        self.still.bias = bias;
+        true
+    }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
     }

@@ -115,7 +115,9 @@ pub trait OrientationFilter<T: Lane> {
     /// over from the accelerometer. Filters that learn more state (bias, covariance) keep it.
     fn set_quat(&mut self, q: Quat<T>);
     /// Sets the gyro-bias estimate, rad/s (sensor frame); `false` (and nothing changed) for
-    /// filters without one.
+    /// filters without one, for `heading-pipeline`, whose estimate is one component (the
+    /// heading rate about earth-up) and cannot hold a three-axis bias, and for
+    /// `complementary-reconstruction` during its still period (the mean is being taken).
     fn set_bias(&mut self, bias: Vec3<T>) -> bool {
         let _ = bias;
         false

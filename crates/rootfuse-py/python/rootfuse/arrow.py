@@ -26,7 +26,8 @@ import itertools
 import warnings
 from typing import Any, Callable, Dict, Iterable, Iterator, Optional
 
-import pyarrow as pa
+# pyarrow ships no type information; an absent pyarrow fails at import, not here.
+import pyarrow as pa  # type: ignore[import-untyped, import-not-found, unused-ignore]
 
 from ._rootfuse import EstimateStream, Filter, estimate_arrow
 
@@ -73,14 +74,20 @@ def _time_order(table: pa.Table) -> pa.Table:
     return table.sort_by(keys)
 
 
-def device_params_dict(table: Any) -> Dict[str, Dict[str, float]]:
+def device_params_dict(table: Any) -> Optional[Dict[str, Dict[str, float]]]:
     """Per-device parameters as ``{device: {name: value}}`` from a dict (returned as it is) or
     a table (a ``pyarrow.Table``, or anything ``pyarrow.table`` takes, such as a pandas
     DataFrame) with a ``device`` column and one column per parameter; a null cell leaves that
     parameter at its default for that device."""
     if table is None or isinstance(table, dict):
         return table
-    table = pa.table(table)
+    try:
+        table = pa.table(table)
+    except (TypeError, ValueError, pa.ArrowException) as e:
+        raise TypeError(
+            "device_params: expected {device: {name: value}} or a table with a `device` column "
+            f"(a pyarrow Table, a pandas DataFrame), got {type(table).__name__} ({e})"
+        ) from None
     if DEVICE not in table.column_names:
         raise ValueError("device_params: missing required column `device`")
     names = [n for n in table.column_names if n != DEVICE]
@@ -123,8 +130,8 @@ def estimate_stream(source: Any, filter: str, **options: Any) -> pa.RecordBatchR
     ``dof``, ``bias``, ``covariance``, ``flags``, ``device_params`` (per-device parameters:
     ``{device: {name: value}}`` or a table, see :func:`device_params_dict`; devices not in it
     run with the other options) and the filter's parameters. A bad row
-    (time not increasing for its device, not finite) raises ``OSError`` (pyarrow's
-    ``ArrowIOError``) when it is reached, naming the record batch, row, column and device."""
+    (time not increasing for its device, not finite) raises ``pyarrow.ArrowInvalid`` (a
+    ``ValueError``) when it is reached, naming the record batch, row, column and device."""
     return pa.RecordBatchReader.from_stream(_estimates(source, filter, options))
 
 
@@ -173,8 +180,8 @@ def cluster_by_device(
     rows of ``group`` devices side by side, which run in SIMD lanes. Returns the number of
     row groups (groups) written."""
     import numpy as np
-    import pyarrow.compute as pc
-    import pyarrow.parquet as pq
+    import pyarrow.compute as pc  # type: ignore[import-untyped, import-not-found, unused-ignore]
+    import pyarrow.parquet as pq  # type: ignore[import-untyped, import-not-found, unused-ignore]
 
     if group < 1:
         raise ValueError(f"group: expected a positive number of devices, got {group}")
@@ -284,7 +291,7 @@ def run_spark(
       device column).
     - ``layout="clustered"``: ``mapInArrow`` without a shuffle, for data written by
       :func:`cluster_by_device` (a device never spans partitions)."""
-    from pyspark.sql import functions as F
+    from pyspark.sql import functions as F  # type: ignore[import-untyped, import-not-found, unused-ignore]
 
     schema_options = {k: options[k] for k in ("bias", "covariance", "flags", "dof") if k in options}
     schema = spark_schema(filter, device_type=device_type, **schema_options)

@@ -209,6 +209,25 @@ impl<T: Lane> DriftEstimator<T> {
         self.bias
     }
 
+    /// Sets the drift estimate, rad/s, sensor frame (clamped to the configured norm, as every
+    /// estimate is) and keeps its covariance: the estimator goes on from there. `false` (and
+    /// nothing changed) if the estimator cannot restart from it (a non-finite `bias`).
+    pub fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        let b = clamp_norm(bias, self.max);
+        let x = b.to_vector();
+        let config = self.rls.config();
+        let restarted = Potter::<T, 3>::new(&x, &self.rls.covariance(), config)
+            .or_else(|_| Potter::<T, 3>::with_isotropic_prior(&x, self.max * self.max, config));
+        match restarted {
+            Ok(rls) => {
+                self.rls = rls;
+                self.bias = b;
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
     /// The covariance of the drift estimate, (rad/s)², sensor frame.
     pub fn covariance(&self) -> Mat<T, 3, 3> {
         self.rls.covariance()

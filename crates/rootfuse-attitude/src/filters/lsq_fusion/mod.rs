@@ -314,6 +314,11 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
     fn bias(&self) -> Vec3<T> {
         self.drift.bias()
     }
+    /// Sets the drift estimate (clamped to `drift_max`, as every estimate is; its covariance
+    /// kept).
+    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+        self.drift.set_bias(bias)
+    }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
     }
