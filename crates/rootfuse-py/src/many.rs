@@ -200,6 +200,77 @@ fn channel_steps(
     }
 }
 
+/// The filter of each of `count` channels: `params` for all, each overridden by its
+/// `channel_params` dict.
+fn channel_specs(
+    py: Python<'_>,
+    name: &str,
+    dof: Option<DofArg>,
+    params: Option<&Bound<'_, PyDict>>,
+    channel_params: Option<&Bound<'_, PyList>>,
+    count: usize,
+) -> PyResult<Vec<FilterSpec>> {
+    Ok(match channel_params {
+        None => vec![spec_from(name, dof, params)?; count],
+        Some(list) => {
+            if list.len() != count {
+                return Err(PyValueError::new_err(format!(
+                    "channel_params: has {} entries but there are {count} channels",
+                    list.len()
+                )));
+            }
+            list.iter()
+                .map(|item| {
+                    let merged = PyDict::new(py);
+                    if let Some(p) = params {
+                        merged.update(p.as_mapping())?;
+                    }
+                    let item = item.cast_into::<PyDict>().map_err(|_| {
+                        PyTypeError::new_err("channel_params: expected a list of dicts")
+                    })?;
+                    merged.update(item.as_mapping())?;
+                    spec_from(name, dof, Some(&merged))
+                })
+                .collect::<PyResult<_>>()?
+        }
+    })
+}
+
+/// `series=False`: every channel's final orientation, bias and rejection counts.
+fn final_states<'py>(
+    py: Python<'py>,
+    specs: &[FilterSpec],
+    sources: &[Inputs<'_>],
+    prec: Precision,
+    count: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let states = py
+        .detach(|| run_final_states(specs, sources, prec))
+        .map_err(|e| {
+            PyValueError::new_err(format!(
+                "channel_params[{}]: not the same filter",
+                e.channel
+            ))
+        })?;
+    let q: Vec<f64> = states
+        .iter()
+        .flat_map(|s| [s.quat.w, s.quat.x, s.quat.y, s.quat.z])
+        .collect();
+    let b: Vec<f64> = states
+        .iter()
+        .flat_map(|s| [s.bias.x, s.bias.y, s.bias.z])
+        .collect();
+    let out = PyDict::new(py);
+    out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, 4])?)?;
+    out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, 3])?)?;
+    let rej = PyList::empty(py);
+    for s in &states {
+        rej.append(rejections_dict(py, &s.rejections)?)?;
+    }
+    out.set_item("rejections", rej)?;
+    Ok(out.into_any())
+}
+
 /// Runs many channels of one registered filter through the SIMD batch engine (`f32x8` or
 /// `f64x4` lanes, two vectors interleaved for the small filters, chunks spread over all cores
 /// with the GIL released). Each channel's result equals running it alone through
@@ -263,30 +334,7 @@ pub fn run_many<'py>(
     let count = g.lens.len();
     check_channel_memory(count)?;
     let steps = channel_steps(dt, t, &g.lens)?;
-    let specs: Vec<FilterSpec> = match channel_params {
-        None => vec![spec_from(name, dof, params)?; count],
-        Some(list) => {
-            if list.len() != count {
-                return Err(PyValueError::new_err(format!(
-                    "channel_params: has {} entries but there are {count} channels",
-                    list.len()
-                )));
-            }
-            list.iter()
-                .map(|item| {
-                    let merged = PyDict::new(py);
-                    if let Some(p) = params {
-                        merged.update(p.as_mapping())?;
-                    }
-                    let item = item.cast_into::<PyDict>().map_err(|_| {
-                        PyTypeError::new_err("channel_params: expected a list of dicts")
-                    })?;
-                    merged.update(item.as_mapping())?;
-                    spec_from(name, dof, Some(&merged))
-                })
-                .collect::<PyResult<_>>()?
-        }
-    };
+    let specs = channel_specs(py, name, dof, params, channel_params, count)?;
     let sources: Vec<Inputs<'_>> = (0..count)
         .map(|c| Inputs {
             gyr: g.channel(c),
@@ -297,31 +345,7 @@ pub fn run_many<'py>(
         })
         .collect();
     if !series {
-        let states = py
-            .detach(|| run_final_states(&specs, &sources, prec))
-            .map_err(|e| {
-                PyValueError::new_err(format!(
-                    "channel_params[{}]: not the same filter",
-                    e.channel
-                ))
-            })?;
-        let q: Vec<f64> = states
-            .iter()
-            .flat_map(|s| [s.quat.w, s.quat.x, s.quat.y, s.quat.z])
-            .collect();
-        let b: Vec<f64> = states
-            .iter()
-            .flat_map(|s| [s.bias.x, s.bias.y, s.bias.z])
-            .collect();
-        let out = PyDict::new(py);
-        out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, 4])?)?;
-        out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, 3])?)?;
-        let rej = PyList::empty(py);
-        for s in &states {
-            rej.append(rejections_dict(py, &s.rejections)?)?;
-        }
-        out.set_item("rejections", rej)?;
-        return Ok(out.into_any());
+        return final_states(py, &specs, &sources, prec, count);
     }
     let has_cov = specs
         .first()

@@ -1,0 +1,55 @@
+//! The offline smoother (`rootfuse_attitude::smooth`) on NumPy arrays.
+
+use crate::arrays::{DofArg, Steps};
+use crate::filter::{Inputs, imu_arrays, recording, spec_from};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// Offline forward-backward smoothing of one recording (f64), for filters with an attitude
+/// covariance (`sqrt-eskf`/`flagship`, `ekf`).
+///
+/// gyr, acc, mag (or None): `(N, 3)`; `t` sample times, s `(N,)` (or `dt`, a fixed step:
+/// times `k·dt`; the smoother reads steps as differences of times, like `rootfuse run
+/// --offline`). Returns `{"quat": (N, 4), "forward_only": int}`: `forward_only` counts the
+/// samples where fusion was impossible and the forward estimate was kept.
+#[pyfunction]
+#[pyo3(signature = (name, gyr, acc, mag=None, *, t=None, dt=None, dof=None, **params))]
+#[allow(clippy::too_many_arguments)]
+pub fn smooth<'py>(
+    py: Python<'py>,
+    name: &str,
+    gyr: &Bound<'py, PyAny>,
+    acc: &Bound<'py, PyAny>,
+    mag: Option<&Bound<'py, PyAny>>,
+    t: Option<&Bound<'py, PyAny>>,
+    dt: Option<&Bound<'py, PyAny>>,
+    dof: Option<DofArg>,
+    params: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let spec = spec_from(name, dof, params)?;
+    let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
+    let steps = Steps::parse(dt, t, n)?;
+    if let Steps::PerSample(_) = steps {
+        return Err(PyValueError::new_err(
+            "dt: the smoother takes sample times t (s, shape (N,)) or a fixed step dt (a number), not per-sample steps",
+        ));
+    }
+    let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
+    let rec = recording(&input, steps.times(n), None, None);
+    let nine_d = spec.uses_magnetometer();
+    let result = py.detach(|| {
+        rootfuse_attitude::smooth::forward_backward(&rec, || spec.build::<f64>(), nine_d)
+    });
+    let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
+    let q: Vec<f64> = smoothed
+        .quat
+        .iter()
+        .flat_map(|q| [q.w, q.x, q.y, q.z])
+        .collect();
+    let out = PyDict::new(py);
+    out.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
+    out.set_item("forward_only", smoothed.forward_only)?;
+    Ok(out)
+}
