@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fleet I/O figures of README's "Fleets" table, whole-process figures from /usr/bin/time:
+# Fleet I/O figures of docs/fleets.md's "Fleet I/O" table, whole-process figures from /usr/bin/time:
 # 1. Parquet in and out against CSV in and out on the same 1e6 samples (100 devices: one
 #    Parquet file vs 100 CSV files), PAIRS interleaved pairs (P C P C ...), each pair's
 #    ratio of wall and CPU time, and the medians;

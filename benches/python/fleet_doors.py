@@ -4,7 +4,7 @@ engine's speed through every door").
 
     cargo build --release -p rootfuse-cli
     (cd crates/rootfuse-py && VIRTUAL_ENV=$PWD/../../.venv ../../.venv/bin/maturin develop --release)
-    .venv/bin/python benches/python/fleet_doors.py [--channels 4096] [--samples 2000] [--rows 1e7] [--readme]
+    .venv/bin/python benches/python/fleet_doors.py [--channels 4096] [--samples 2000] [--rows 1e7] [--docs]
 
 1. `run_many` on C x N channels of tiled BROAD data (trial 07, or a simulated recording when
    the folder is absent) against `rootfuse throughput` lanes-f32x8-threads (synthetic data in
@@ -16,14 +16,16 @@ engine's speed through every door").
    reading counted) against `rootfuse run` on that file: samples per CPU-second (user +
    system, every thread). Target >= 0.8.
 
-Every time is the best of `--repeats` interleaved runs. `--readme` rewrites the table between
-the `fleet_doors` markers in README.md. Spark is measured by spark_fleet_bench.py.
+Every time is the best of `--repeats` interleaved runs. `--docs [PAGE]` rewrites the table
+between the `fleet_doors` markers in PAGE (default docs/performance.md), under one line naming
+the machine, the commit and the command. Spark is measured by spark_fleet_bench.py.
 """
 
 import argparse
 import json
 import os
 import pathlib
+import platform
 import subprocess
 import sys
 import tempfile
@@ -162,7 +164,8 @@ def main():
     p.add_argument("--rows", type=float, default=1e7)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--skip-arrow", action="store_true")
-    p.add_argument("--readme", action="store_true", help="rewrite README.md's fleet_doors table")
+    p.add_argument("--docs", nargs="?", const="docs/performance.md", metavar="PAGE",
+                   help="rewrite the fleet_doors table in PAGE (default docs/performance.md)")
     args = p.parse_args()
     if not CLI.exists():
         sys.exit(f"{CLI} missing: cargo build --release -p rootfuse-cli")
@@ -171,17 +174,21 @@ def main():
     if not args.skip_arrow:
         with tempfile.TemporaryDirectory(dir=REPO / "target") as d:
             arrow_rows(args, rows, pathlib.Path(d))
-    text = table(rows, f"{args.channels} x {args.samples} channels of {data}")
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    command = (f"benches/python/fleet_doors.py --channels {args.channels} --samples {args.samples} "
+               f"--rows {args.rows:g} --repeats {args.repeats}" + (" --skip-arrow" if args.skip_arrow else ""))
+    source = f"{platform.node()}, commit {commit}, `{command}`."
+    text = source + "\n\n" + table(rows, f"{args.channels} x {args.samples} channels of {data}")
     print(text)
-    if args.readme:
-        readme = REPO / "README.md"
-        s = readme.read_text()
+    if args.docs:
+        page = REPO / args.docs
+        s = page.read_text()
         begin, end = "<!-- fleet_doors:begin -->", "<!-- fleet_doors:end -->"
         if begin not in s:
-            sys.exit("README.md has no fleet_doors markers")
+            sys.exit(f"{args.docs} has no fleet_doors markers")
         head, rest = s.split(begin, 1)
         _, tail = rest.split(end, 1)
-        readme.write_text(f"{head}{begin}\n{text}\n{end}{tail}")
+        page.write_text(f"{head}{begin}\n{text}\n{end}{tail}")
 
 
 if __name__ == "__main__":

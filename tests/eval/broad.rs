@@ -100,7 +100,7 @@ fn broad_rmse_is_pinned() {
     );
 }
 
-/// f32 gives the accuracy of f64 on the four pinned trials, as the README says: total RMSE
+/// f32 gives the accuracy of f64 on the four pinned trials, as docs/accuracy.md says: total RMSE
 /// within 0.01° for every filter, 6D and 9D, except the EKF in 6D (within 0.4°; measured
 /// at most 0.003° elsewhere and 0.10° for the EKF 6D, on trial 16, where its gate
 /// decisions flip near the threshold).
@@ -125,7 +125,7 @@ fn broad_f32_matches_f64() {
                 };
                 assert!(
                     (a.total - b.total).abs() < within,
-                    "{trial} {} {dof}D: f64 {} vs f32 {} (README: within {within}°)",
+                    "{trial} {} {dof}D: f64 {} vs f32 {} (docs/accuracy.md: within {within}°)",
                     kind.name(),
                     a.total,
                     b.total
@@ -157,7 +157,7 @@ fn madgwick_against_reference() {
 }
 
 /// VQF online total RMSE (degrees) on the four trials, 9D and 6D
-/// (the VQF rows of README.md's BROAD table, the numbers the flagship must beat).
+/// (the VQF rows of docs/accuracy.md's four-trial table, the numbers the flagship must beat).
 const VQF_ONLINE_9D: [f64; 4] = [1.38, 1.75, 0.74, 2.38];
 const VQF_ONLINE_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
 

@@ -201,7 +201,7 @@ fn nist(name: &str) -> (Dataset, Table) {
 /// QR, pivoted QR and SVD in f64 reach `qr` correct digits (estimates, standard deviations,
 /// residual standard deviation, R²); normal equations reach `ne` digits or report breakdown.
 /// QR in f32 reaches `qr_f32` digits (0 where the data are not representable in f32).
-/// The QR bounds are what was measured, rounded down to a tenth of a digit: the README's
+/// The QR bounds are what was measured, rounded down to a tenth of a digit: docs/numerics.md's
 /// "≥ 13 digits on every dataset but Longley (12.0) and Filip" is what they hold; the
 /// normal-equation and f32 bounds are rounded down by about one digit.
 fn assert_nist(name: &str, qr: f64, ne: f64, qr_f32: f64) {

@@ -106,3 +106,8 @@ pub use recording::Recording;
 pub use rootfuse_lane::{Lane, Mask, Mat};
 pub use sample::ImuSample;
 pub use vec3::Vec3;
+
+/// The README's Rust blocks, compiled and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;

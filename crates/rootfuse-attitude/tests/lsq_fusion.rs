@@ -1,6 +1,6 @@
 //! LS quaternion fusion (`lsq-fusion`): the denoiser against closed forms, drift
 //! recovery, no vertical windup, and the measured comparison with `complementary`
-//! (the README has the tables).
+//! (docs/accuracy.md has the tables).
 use crate::common::broad_dir;
 use nalgebra::Matrix3;
 use rootfuse_attitude::filters::{LsqFusion, LsqFusionParams, PolyDenoiser};
@@ -212,7 +212,7 @@ fn mean_rmse(name: &str, dof: u8, recs: &[Recording]) -> f64 {
 }
 
 /// Mean total RMSE of `lsq-fusion` over `complementary` (seeds 1–3, 120 s at 100 Hz), pinned
-/// within 0.03 + 3 %: the comparison goes both ways (see the README).
+/// within 0.03 + 3 %: the comparison goes both ways (see docs/accuracy.md).
 #[test]
 fn against_complementary_on_simulations() {
     #[rustfmt::skip]

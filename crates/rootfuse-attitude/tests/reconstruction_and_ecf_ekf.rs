@@ -1,5 +1,5 @@
 //! `complementary-reconstruction` and `ecf-ekf` (patent methods): the measured comparisons
-//! of the README pinned, and method-specific checks.
+//! of docs/accuracy.md pinned, and method-specific checks.
 //!
 //! Simulated numbers: f64, 100 Hz, 60 s, seeds 1..=4 averaged, roll/pitch/yaw RMSE in
 //! degrees from 2 s on (`metrics::euler_rmse`), the same set-up as

@@ -13,7 +13,7 @@
 //!   (multilateration, then the direction of travel of the fixes).
 //! - [`fuse`]: the beacon heading fused into `ψ_MEMS`, and pedestrian dead reckoning.
 //! - [`sim`]: a seeded simulator (beacons, a walk with turns, shadowing, scan gaps, IMU) and
-//!   the 10-minute experiment whose results the README reports.
+//!   the 10-minute experiment whose results docs/accuracy.md reports.
 //!
 //! Positions are metres in a local east/north plane; headings are the project's yaw: rad,
 //! counter-clockwise about up, 0 toward north (+y), so walking at heading `ψ` moves along

@@ -244,8 +244,8 @@ fn a_bad_input_means_no_estimate_without_keep_going() {
 }
 
 /// SIGTERM during the second of two fleet files: the run exits 130 without writing any
-/// estimate (the first one used to be left in place while README said the file being
-/// written is finished: neither is what happens now, and README says so).
+/// estimate (the first one used to be left in place while the docs said the file being
+/// written is finished: neither is what happens now, and docs/cli.md says so).
 #[cfg(unix)]
 #[test]
 fn signal_writes_no_estimate() {

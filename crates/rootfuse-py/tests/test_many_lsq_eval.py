@@ -227,7 +227,7 @@ def test_stress_rows():
     assert {r["precision"] for r in rows} == {"f32", "f64"}
     for r in rows:
         assert set(r) >= {"scenario", "param", "steps", "max_rel_err", "pd_lost_at", "nan_at", "detected", "ns_per_update", "trace"}
-    # f32, delta = 1e-4: the conventional form is flagged, Bierman U-D is accurate (the README table)
+    # f32, delta = 1e-4: the conventional form is flagged, Bierman U-D is accurate (the table in docs/numerics.md)
     pick = {(r["form"], r["precision"], r["param"]): r for r in rows}
     assert pick[("conventional", "f32", 1e-4)]["detected"]
     assert pick[("bierman-ud", "f32", 1e-4)]["max_rel_err"] < 1e-2

@@ -1,4 +1,4 @@
-"""The README's Spark deployment, run as written: rootfuse built as a wheel, installed into a
+"""The Spark deployment of docs/fleets.md, run as written: rootfuse built as a wheel, installed into a
 fresh virtual environment packed with venv-pack, shipped with `spark-submit --archives`,
 `PYSPARK_PYTHON` pointing into it, on a small fleet, in both layouts. The master is
 `local-cluster[1,2,1024]` (one executor process with 2 cores and 1 GB, started by
@@ -54,8 +54,8 @@ def _tool(name):
 
 def _wheel(out):
     """The wheel scripts/test-all.sh built and installed for this test run (ROOTFUSE_WHEEL),
-    so the deployment ships the extension the other tests ran; run alone, a release wheel as
-    the README builds it."""
+    so the deployment ships the extension the other tests ran; run alone, a wheel as
+    `maturin build` makes it."""
     given = os.environ.get("ROOTFUSE_WHEEL")
     if given:
         return pathlib.Path(given)

@@ -12,7 +12,9 @@ import pytest
 
 pytest.importorskip("mypy", reason="mypy not installed: the stubs are not checked")
 
-README = pathlib.Path(__file__).resolve().parents[3] / "README.md"
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+# The READMEs whose Python blocks test_readme.py runs: the quick start and the package's tour.
+READMES = [ROOT / "README.md", ROOT / "crates" / "rootfuse-py" / "README.md"]
 # Entries for what stubtest reports and the stubs cannot express, each with a comment why;
 # none are needed today (the file may be absent).
 ALLOWLIST = pathlib.Path(__file__).with_name("stubtest_allowlist.txt")
@@ -33,13 +35,12 @@ def test_stubtest_finds_no_difference(tmp_path):
     assert r.returncode == 0, f"stubtest:\n{r.stdout}{r.stderr}"
 
 
-def test_readme_python_example_type_checks(tmp_path):
-    # The block test_readme.py runs: the first ```python block of the Python section.
-    text = README.read_text()
-    section = text[text.index("## Python"):]
-    match = re.search(r"```python\n(.*?)```", section, re.S)
-    assert match, "README.md has no ```python block in its Python section"
+@pytest.mark.parametrize("readme", READMES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_readme_python_examples_type_check(readme, tmp_path):
+    # Every ```python block, as test_readme.py runs it.
+    blocks = re.findall(r"```python\n(.*?)```", readme.read_text(), re.S)
+    assert blocks, f"{readme} has no ```python block"
     example = tmp_path / "readme_example.py"
-    example.write_text(match.group(1))
+    example.write_text("\n".join(blocks))
     r = _mypy(["mypy", "--no-incremental", "--show-error-codes", str(example)], tmp_path)
-    assert r.returncode == 0, f"mypy on the README's example:\n{r.stdout}{r.stderr}"
+    assert r.returncode == 0, f"mypy on {readme.name}'s examples:\n{r.stdout}{r.stderr}"

@@ -115,7 +115,7 @@ params! {
 ///   the field levelled with the accelerometer's tilt, and so the tilt and heading rows have
 ///   the same gain (`fusion_tau`).
 /// - Defaults were chosen on the simulated presets and the four BROAD trials (see the
-///   README's measured tables); they are not the source's (it gives none).
+///   measured tables in docs/accuracy.md); they are not the source's (it gives none).
 #[derive(Clone, Debug)]
 pub struct LsqFusion<T: Lane> {
     hampel: [Hampel<T, 5>; 3],
