@@ -366,6 +366,28 @@ impl Filter {
     fn dof_count(&self) -> Option<u8> {
         self.spec.dof().map(Dof::count)
     }
+    /// A standard deviation argument: a finite number ≥ 0 (not a bool).
+    fn sigma(&self, obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
+        if arrays::is_bool(obj) {
+            return Err(PyTypeError::new_err(format!(
+                "{name}: expected a standard deviation (a number), got a bool"
+            )));
+        }
+        let x = arrays::real(obj)?;
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected a standard deviation (a finite number ≥ 0), got {x}"
+            )));
+        }
+        Ok(x)
+    }
+    /// The error for `sigma=` on a filter whose covariance cannot be set.
+    fn no_sigma(&self) -> PyErr {
+        PyValueError::new_err(format!(
+            "sigma: only the flagship (sqrt-eskf) sets its covariance with the state; `{}` takes the value alone",
+            self.kind_name()
+        ))
+    }
 }
 
 /// Reads `gyr`, `acc`, `mag` as `(N, 3)` arrays of one length.
@@ -611,7 +633,10 @@ impl Filter {
     /// Sets the orientation `[w, x, y, z]` (sensor to earth, ENU; normalised by the filter)
     /// and marks the filter initialised: the next samples correct from there instead of
     /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
-    fn set_quat(&self, q: &Bound<'_, PyAny>) -> PyResult<()> {
+    /// `sigma` (rad, flagship only): the orientation's standard deviation per earth axis;
+    /// `covariance()` then reads `sigma²·I` (the attitude–bias correlation removed).
+    #[pyo3(signature = (q, sigma=None))]
+    fn set_quat(&self, q: &Bound<'_, PyAny>, sigma: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
         let q = quat_arg(q, "q")?;
         // Normalising a quaternion far from unit norm hides a mistake (a vector of tiny
         // numbers became the identity in f32).
@@ -622,7 +647,15 @@ impl Filter {
             )));
         }
         let mut state = self.lock()?;
-        with_state!(&mut *state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q)));
+        match sigma.map(|s| self.sigma(s, "sigma")).transpose()? {
+            None => with_state!(&mut *state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q))),
+            Some(sigma) => with_state!(&mut *state, f => match f {
+                AnyFilter::SqrtEskf(f) => f
+                    .set_quat_with_sigma(rootfuse_attitude::Quat::from_f64(q), Lane::from_f64(sigma))
+                    .map_err(|e| PyValueError::new_err(e.to_string()))?,
+                _ => return Err(self.no_sigma()),
+            }),
+        }
         Ok(())
     }
 
@@ -633,7 +666,13 @@ impl Filter {
     /// `complementary-reconstruction` takes it in place of its still-period mean once the
     /// still period (`still_s`) is over, False during it (the mean is being taken);
     /// `lsq-fusion` clamps it to `drift_max`, as every estimate of its drift.
-    fn set_bias(&self, bias: &Bound<'_, PyAny>) -> PyResult<bool> {
+    /// `sigma` (rad/s, flagship only): the bias's standard deviation per axis, set with it.
+    #[pyo3(signature = (bias, sigma=None))]
+    fn set_bias(
+        &self,
+        bias: &Bound<'_, PyAny>,
+        sigma: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<bool> {
         let b = vec3_arg(bias, "bias")?;
         if !b.iter().all(|x| x.is_finite()) {
             return Err(PyValueError::new_err(format!(
@@ -648,7 +687,16 @@ impl Filter {
             )));
         }
         let mut state = self.lock()?;
-        Ok(with_state!(&mut *state, f => f.set_bias(Vec3::from_f64(b))))
+        match sigma.map(|s| self.sigma(s, "sigma")).transpose()? {
+            None => Ok(with_state!(&mut *state, f => f.set_bias(Vec3::from_f64(b)))),
+            Some(sigma) => with_state!(&mut *state, f => match f {
+                AnyFilter::SqrtEskf(f) => f
+                    .set_bias_with_sigma(Vec3::from_f64(b), Lane::from_f64(sigma))
+                    .map(|()| true)
+                    .map_err(|e| PyValueError::new_err(e.to_string())),
+                _ => Err(self.no_sigma()),
+            }),
+        }
     }
 
     /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise

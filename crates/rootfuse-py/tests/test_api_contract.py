@@ -318,3 +318,28 @@ def test_update_batch_can_leave_the_covariance_out():
 def test_run_many_says_its_default_precision():
     assert inspect.signature(rf.run_many).parameters["precision"].default == "f32"
     assert '"f32"' in rf.run_many.__doc__ and "by default" in rf.run_many.__doc__
+
+
+def test_flagship_state_is_set_with_its_uncertainty():
+    # set_quat(q, sigma) and set_bias(b, sigma) reach the flagship's covariance; other
+    # filters refuse sigma by name; a bad sigma changes nothing.
+    rec = rf.simulate("slow-rotation", seed=2, duration_s=5.0)
+    for precision, tol in (("f64", 1e-15), ("f32", 1e-9)):
+        f = rf.Filter("flagship", precision=precision)
+        f.update_batch(rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
+        q = [np.cos(0.2), 0.0, 0.0, np.sin(0.2)]
+        f.set_quat(q, sigma=0.01)
+        assert np.allclose(f.covariance, np.eye(3) * 1e-4, atol=tol, rtol=1e-5)
+        assert np.allclose(f.quat, q, atol=1e-6)
+        before = f.covariance.copy()
+        assert f.set_bias([0.01, 0.0, -0.02], sigma=1e-3) is True
+        assert np.allclose(f.bias, [0.01, 0.0, -0.02], atol=1e-7)
+        assert np.allclose(f.covariance, before, atol=tol, rtol=1e-5)
+        for bad in (float("nan"), -1.0, True):
+            with pytest.raises((ValueError, TypeError), match="sigma"):
+                f.set_quat(q, sigma=bad)
+        assert np.allclose(f.covariance, before, atol=tol, rtol=1e-5)
+    with pytest.raises(ValueError, match="sigma: only the flagship"):
+        rf.Filter("mahony").set_quat([1.0, 0.0, 0.0, 0.0], sigma=0.1)
+    with pytest.raises(ValueError, match="sigma: only the flagship"):
+        rf.Filter("ekf").set_bias([0.0, 0.0, 0.0], sigma=0.1)

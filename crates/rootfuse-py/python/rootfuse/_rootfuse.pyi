@@ -175,9 +175,9 @@ class Filter:
     @property
     def rejections(self) -> _Rejections:
         """Counts of what was skipped since construction or reset."""
-    def set_quat(self, q: Union[Sequence[float], _FloatArray]) -> None:
+    def set_quat(self, q: Union[Sequence[float], _FloatArray], sigma: Optional[float] = None) -> None:
         """Sets the orientation [w, x, y, z] (normalised) and marks the filter initialised."""
-    def set_bias(self, bias: Union[Sequence[float], _FloatArray]) -> bool:
+    def set_bias(self, bias: Union[Sequence[float], _FloatArray], sigma: Optional[float] = None) -> bool:
         """Sets the gyro bias, rad/s; False for filters that cannot hold a 3-axis bias."""
     def set_heading(self, heading: float) -> None:
         """Turns about earth-up to this heading, rad (counter-clockwise from north)."""
