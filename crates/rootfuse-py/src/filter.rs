@@ -1,13 +1,13 @@
 //! One filter, one channel: `Filter` (whole arrays with `update_batch`, or one sample at a
-//! time) and the registry listing.
+//! time).
 
 use crate::arrays::{self, DofArg, Steps, same_length, sensor_matrix};
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 use rootfuse_attitude::filters::{ParamKind, Rejections};
-use rootfuse_attitude::registry::{AnyFilter, FilterKind, FilterSpec};
+use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
 use std::sync::{Mutex, MutexGuard, TryLockError};
@@ -744,33 +744,6 @@ pub fn rejections_dict<'py>(py: Python<'py>, r: &RejectionTotals) -> PyResult<Bo
     d.set_item("gated", r.gated)?;
     d.set_item("mag_disturbed", r.mag_disturbed)?;
     Ok(d)
-}
-
-/// Every registered filter: a list of dicts `{"name", "description", "params": [{"name",
-/// "kind", "default", "unit", "min", "max", "doc"}]}`.
-#[pyfunction]
-pub fn filters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
-    let out = PyList::empty(py);
-    for kind in FilterKind::ALL {
-        let d = PyDict::new(py);
-        d.set_item("name", kind.name())?;
-        d.set_item("description", kind.description())?;
-        let params = PyList::empty(py);
-        for p in kind.params() {
-            let pd = PyDict::new(py);
-            pd.set_item("name", p.name)?;
-            pd.set_item("kind", p.kind.describe())?;
-            pd.set_item("default", p.default)?;
-            pd.set_item("unit", p.unit)?;
-            pd.set_item("min", p.min)?;
-            pd.set_item("max", p.max)?;
-            pd.set_item("doc", p.doc)?;
-            params.append(pd)?;
-        }
-        d.set_item("params", params)?;
-        out.append(d)?;
-    }
-    Ok(out)
 }
 
 /// A `Recording` from arrays (what the smoother, metrics and writer take).

@@ -16,6 +16,7 @@ mod filter;
 mod fleet;
 mod lsq;
 mod many;
+mod registry;
 mod smooth;
 
 use pyo3::prelude::*;
@@ -97,7 +98,7 @@ fn _rootfuse(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The crate's version is the package's (maturin takes it from Cargo.toml).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<filter::Filter>()?;
-    m.add_function(wrap_pyfunction!(filter::filters, m)?)?;
+    m.add_function(wrap_pyfunction!(registry::filters, m)?)?;
     m.add_function(wrap_pyfunction!(smooth::smooth, m)?)?;
     m.add_function(wrap_pyfunction!(many::run_many, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::estimate_arrow, m)?)?;
