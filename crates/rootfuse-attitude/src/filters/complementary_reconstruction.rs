@@ -212,20 +212,7 @@ fn vmin<T: Lane>(a: Vec3<T>, b: Vec3<T>) -> Vec3<T> {
 }
 
 impl<T: Lane> ComplementaryReconstruction<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](ComplementaryReconstructionParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(
-        p: &ComplementaryReconstructionParams,
-    ) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters.
-    pub fn new(p: &ComplementaryReconstructionParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(p))
-    }
+    crate::filters::uniform_constructors!(ComplementaryReconstructionParams);
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.

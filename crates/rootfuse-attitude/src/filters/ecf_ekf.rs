@@ -94,18 +94,7 @@ pub struct EcfEkf<T: Lane> {
 }
 
 impl<T: Lane> EcfEkf<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](EcfEkfParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &EcfEkfParams) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters.
-    pub fn new(p: &EcfEkfParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(p))
-    }
+    crate::filters::uniform_constructors!(EcfEkfParams);
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.

@@ -24,18 +24,7 @@ pub struct GyroIntegration<T: Lane> {
 }
 
 impl<T: Lane> GyroIntegration<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](GyroParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &GyroParams) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters, at the identity until initialised.
-    pub fn new(params: &GyroParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(params))
-    }
+    crate::filters::uniform_constructors!(GyroParams);
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.

@@ -51,18 +51,7 @@ pub struct Mahony<T: Lane> {
 }
 
 impl<T: Lane> Mahony<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](MahonyParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &MahonyParams) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters.
-    pub fn new(p: &MahonyParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(p))
-    }
+    crate::filters::uniform_constructors!(MahonyParams);
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.

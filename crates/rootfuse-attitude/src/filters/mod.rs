@@ -45,6 +45,25 @@ macro_rules! lane_state {
 }
 pub(crate) use lane_state;
 
+/// A filter's `try_new` (validated) and `new` (one parameter set in every lane) over its
+/// `with_lane_params`: the constructor pair every filter has, written once.
+macro_rules! uniform_constructors {
+    ($params:ident) => {
+        #[doc = concat!("A filter with the given parameters once they pass [`validate`](", stringify!($params), "::validate): an invalid set (a struct literal with a value out of range, or NaN) is refused instead of run.")]
+        pub fn try_new(p: &$params) -> Result<Self, crate::filters::InvalidParam> {
+            p.validate()?;
+            Ok(Self::new(p))
+        }
+
+        /// A filter with the given parameters in every lane (not validated: see `try_new`).
+        pub fn new(p: &$params) -> Self {
+            Self::with_lane_params(&crate::filters::LaneParams::uniform(p))
+        }
+    };
+}
+pub(crate) use uniform_constructors;
+
+
 pub use complementary::{Complementary, ComplementaryParams};
 pub use complementary_reconstruction::{
     ComplementaryReconstruction, ComplementaryReconstructionParams,

@@ -141,18 +141,7 @@ const GRAVITY: f64 = 9.81;
 const FUSION_PRIOR: f64 = 1.0;
 
 impl<T: Lane> LsqFusion<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](LsqFusionParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &LsqFusionParams) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters.
-    pub fn new(p: &LsqFusionParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(p))
-    }
+    crate::filters::uniform_constructors!(LsqFusionParams);
 
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, the denoiser's and the drift estimator's, marked `shared`, and the

@@ -551,18 +551,7 @@ pub struct SqrtEskf<T: Lane> {
 }
 
 impl<T: Lane> SqrtEskf<T> {
-    /// A filter with the given parameters once they pass
-    /// [`validate`](SqrtEskfParams::validate): an invalid set (a struct literal with a value out of
-    /// range, or NaN) is refused instead of run.
-    pub fn try_new(p: &SqrtEskfParams) -> Result<Self, crate::filters::InvalidParam> {
-        p.validate()?;
-        Ok(Self::new(p))
-    }
-
-    /// A filter with the given parameters in every lane.
-    pub fn new(p: &SqrtEskfParams) -> Self {
-        Self::with_lane_params(&LaneParams::uniform(p))
-    }
+    crate::filters::uniform_constructors!(SqrtEskfParams);
 
     /// A filter whose lanes may have different parameters (see [`LaneParams`]); `dof` and
     /// the screening limits are those of the first set.
