@@ -27,16 +27,21 @@ use std::time::Instant;
 
 const RATE_HZ: f64 = 286.0;
 
-/// `n` samples (sensor frame, SI units) of the motion described in the module docs.
-fn motion(n: usize) -> Vec<ImuSample<f64>> {
-    let dt = 1.0 / RATE_HZ;
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut noise = move |scale: f64| {
+/// A deterministic uniform stream in [−1, 1) (xorshift64 from `seed`).
+fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+    move || {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
-        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * scale
-    };
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0
+    }
+}
+
+/// `n` samples (sensor frame, SI units) of the motion described in the module docs.
+fn motion(n: usize) -> Vec<ImuSample<f64>> {
+    let dt = 1.0 / RATE_HZ;
+    let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
+    let mut noise = move |scale: f64| uniform() * scale;
     let mut q = Quat::<f64>::from_euler_zyx(0.3, 0.1, -0.2);
     (0..n)
         .map(|i| {
@@ -81,13 +86,7 @@ fn run_filter<T: Lane, F: OrientationFilter<T>>(
     make: impl Fn() -> F,
 ) -> (f64, f64) {
     let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut uniform = xorshift(0x9e37_79b9_7f4a_7c15);
     let input: Vec<(ImuSample<T>, T)> = data
         .iter()
         .map(|s| {

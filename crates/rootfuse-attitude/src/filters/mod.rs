@@ -63,7 +63,6 @@ macro_rules! uniform_constructors {
 }
 pub(crate) use uniform_constructors;
 
-
 pub use complementary::{Complementary, ComplementaryParams};
 pub use complementary_reconstruction::{
     ComplementaryReconstruction, ComplementaryReconstructionParams,
