@@ -43,8 +43,8 @@
 //! recursive least-squares forms behind `lsq-fusion`, `no_std`) and `libm`. Without default
 //! features it is `no_std` and allocation-free: quaternions, vectors, frames, building blocks,
 //! pre-processing and every filter. The `std` feature adds the filter registry (names and
-//! `key=value` parameters), [`Recording`] (a whole recording in memory) and the offline
-//! forward–backward smoother ([`smooth`]); `nalgebra` adds conversions to and from nalgebra's
+//! `key=value` parameters), `Recording` (a whole recording in memory) and the offline
+//! forward–backward smoother (module `smooth`); `nalgebra` adds conversions to and from nalgebra's
 //! types. Files live in `rootfuse-io`, metrics and the simulator in `rootfuse-eval`.
 //!
 //! # Conventions (the whole project; see `docs/conventions.md` in the repository)

@@ -48,7 +48,7 @@
 //! `F = AnyFilter<L>` (a run-time choice, [`Batch::new`]) every channel costs the largest
 //! registered filter ([`state_bytes_per_channel`]); with the concrete type (`Mahony<L>`, …,
 //! [`Batch::try_new`]) a channel costs its own filter's state. [`run_recordings`] and
-//! [`throughput`] turn the run-time [`FilterSpec`] into the concrete type once per batch
+//! `throughput` (feature `throughput`) turn the run-time [`FilterSpec`] into the concrete type once per batch
 //! ([`FilterSpec::visit`](rootfuse_attitude::registry::FilterSpec::visit)), so they use the
 //! small layout and match nothing per sample. Bytes per channel
 //! ([`Batch::state_bytes_per_channel`]: filter state, parameters, the per-lane `u64`
@@ -98,7 +98,7 @@
 //! threads).
 //!
 //! # Throughput
-//! [`throughput`] measures scalar `f32`/`f64` loops, `f32x8`/`f64x4` lanes on one core and
+//! `throughput` (feature `throughput`) measures scalar `f32`/`f64` loops, `f32x8`/`f64x4` lanes on one core and
 //! `f32x8` lanes on all cores in one run (the CLI's `rootfuse throughput`), every mode on the
 //! concrete filter type. A filter update is one long dependency chain per vector (the next
 //! step needs this step's orientation, through square roots, divisions and products), so a
@@ -117,13 +117,13 @@
 //! (Mahony 6D in `X2<f32x8>` on one core, about 0.5 s per point, best of 3; the dashed lines
 //! mark where the channels' filter state fills L1d and L2, read from
 //! `/sys/devices/system/cpu/cpu0/cache`). Two orders:
-//! - **Chunk by chunk** (offline, whole recordings; [`Order::ChunkMajor`]): each chunk runs
+//! - **Chunk by chunk** (offline, whole recordings; `throughput::Order::ChunkMajor`): each chunk runs
 //!   all its samples before the next, its state stays in registers, and the channel count
 //!   does not matter: flat at about 2.1e8 channel-updates/s from 64 channels to 1e6. Below
 //!   16 channels the one chunk is partly empty (8 channels fill half of a 16-lane `X2`
 //!   chunk, so half the work is padding: 1.0e8).
 //! - **Tick by tick** (real-time streaming of many sensors, one sample for every channel, then
-//!   the next; [`Order::Tick`]): each chunk's filter state (94 B per channel for Mahony in `X2<f32x8>`,
+//!   the next; `throughput::Order::Tick`): each chunk's filter state (94 B per channel for Mahony in `X2<f32x8>`,
 //!   40 B of it the rejection counters) is loaded and stored once per sample. The input pool is the same
 //!   1.3 MB either way. Measured (one sweep): within L1d (48 KiB on this machine, about 500
 //!   channels) a tick costs 7–12 % more than chunk by chunk (the loads, stores and loop per
