@@ -159,7 +159,9 @@ impl<T: Lane> SqrtEskf<T> {
 }
 
 /// The upper-triangular `U` with `U·Uᵀ = p` of a symmetric positive semi-definite 3×3 `p`
-/// (a negative pivot from rounding is taken as zero, and its column as zero).
+/// (a negative pivot from rounding is taken as zero, and its column as zero). Not
+/// `Mat::cholesky`: that factor is lower triangular and replaces a zero pivot by 1, where a
+/// semi-definite block (σ = 0 set for an axis) must keep its zero.
 fn upper_cholesky3<T: Lane>(p: &Mat<T, 3, 3>) -> Mat<T, 3, 3> {
     let zero = T::zero();
     let div = |a: T, d: T| T::select(d.simd_gt(zero), a / d, zero);
