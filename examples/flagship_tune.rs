@@ -51,7 +51,7 @@ fn run<T: rootfuse::Lane>(
                 d(b.x),
                 d(b.y),
                 d(b.z),
-                f.at_rest().any()
+                f.rest_detected().unwrap().any()
             );
         }
         q9.push(q64(f.quat9()));

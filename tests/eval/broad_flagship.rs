@@ -156,7 +156,7 @@ fn model_error_makes_the_covariance_honest() {
         for i in 0..rec.len() {
             f.update(&rec.sample(i), rec.dt(i));
             q.push(f.quat());
-            let a = f.attitude_covariance();
+            let a = f.attitude_covariance().expect("the flagship carries one");
             cov.push([
                 a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
             ]);

@@ -28,9 +28,32 @@
 //! }
 //! let q: Quat<f32> = filter.quat(); // sensor to earth (ENU), [w, x, y, z]
 //! let bias: Vec3<f32> = filter.bias(); // gyroscope bias, rad/s
-//! let p = filter.attitude_covariance(); // rad², earth axes: [2][2] is the heading variance
+//! // rad², earth axes: [2][2] is the heading variance (`None` for filters without one)
+//! let p = filter.attitude_covariance().expect("the flagship carries one");
 //! assert!(q.angle_to(Quat::identity()) < 0.01);
 //! assert!(bias.norm() < 1e-3 && p.m[0][0] > 0.0);
+//! ```
+//!
+//! State control, the same on every filter ([`OrientationFilter`]): `reset()` starts over
+//! with the same parameters (`params()` returns them), `set_quat(q, sigma)` and
+//! `set_bias(b, sigma)` set the state with its uncertainty (`None` keeps the covariance), and
+//! refuse NaN or absurd values with a [`StateError`], changing nothing:
+//!
+//! ```
+//! use rootfuse_attitude::prelude::*;
+//!
+//! let mut filter = SqrtEskf::<f64>::try_new(&SqrtEskfParams::default()).expect("valid defaults");
+//! // A known start: heading 0.5 rad, level, to within 0.02 rad per axis.
+//! filter.set_quat(Quat::from_euler_zyx(0.5, 0.0, 0.0), Some(0.02))?;
+//! let p = filter.attitude_covariance().expect("the flagship carries one");
+//! assert!((p.m[2][2] - 0.02 * 0.02).abs() < 1e-12);
+//! // A bias measured beforehand, rad/s, to within 1 mrad/s.
+//! filter.set_bias(Vec3::new(0.01, -0.002, 0.0), Some(1e-3))?;
+//! assert!(filter.set_bias(Vec3::new(f64::NAN, 0.0, 0.0), None).is_err());
+//! assert_eq!(filter.params().tau_acc, SqrtEskfParams::default().tau_acc);
+//! filter.reset(); // as new: identity, zero bias, the initial covariance
+//! assert_eq!(filter.bias(), Vec3::zero());
+//! # Ok::<(), StateError>(())
 //! ```
 //!
 //! `SqrtEskf::<wide::f32x8>` runs eight independent channels in one register with the same
@@ -91,14 +114,14 @@ pub mod vec3;
 pub mod prelude {
     pub use crate::filters::{
         Dof, Madgwick, MadgwickParams, Mahony, MahonyParams, OrientationFilter, SqrtEskf,
-        SqrtEskfParams,
+        SqrtEskfParams, StateError,
     };
     pub use crate::{ImuSample, Quat, Vec3};
     pub use rootfuse_lane::Lane;
 }
 
 pub use calibration::SensorCalibration;
-pub use filters::{Dof, OrientationFilter};
+pub use filters::{Dof, OrientationFilter, StateError};
 pub use filters::{SqrtEskf, SqrtEskfParams};
 pub use quat::Quat;
 #[cfg(feature = "std")]

@@ -172,11 +172,14 @@ macro_rules! registry {
             fn rejections(&self) -> &Rejections<T> {
                 match self { $(Self::$variant(f) => f.rejections(),)* }
             }
-            fn set_quat(&mut self, q: Quat<T>) {
-                match self { $(Self::$variant(f) => f.set_quat(q),)* }
+            fn reset(&mut self) {
+                match self { $(Self::$variant(f) => f.reset(),)* }
             }
-            fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-                match self { $(Self::$variant(f) => f.set_bias(bias),)* }
+            fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+                match self { $(Self::$variant(f) => f.set_quat(q, sigma),)* }
+            }
+            fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+                match self { $(Self::$variant(f) => f.set_bias(bias, sigma),)* }
             }
             #[inline]
             fn flags(&self) -> SampleFlags<T> {

@@ -1,8 +1,9 @@
 //! Typed filter configuration: parameter kinds, 6D/9D, screening limits as parameters, state
 //! control (set quaternion, bias, heading) and per-sample flags, for every registered filter.
-use rootfuse_attitude::filters::{ParamError, ParamKind, SampleFlags};
+use rootfuse_attitude::filters::{ParamError, ParamKind, SampleFlags, StateError};
 use rootfuse_attitude::registry::{Assignment, FilterKind, FilterSpec, RegistryError};
-use rootfuse_attitude::{Dof, ImuSample, OrientationFilter, Quat, Vec3};
+use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Quat, Vec3};
+use rootfuse_eval::sim::scenario;
 
 fn level_sample() -> ImuSample<f64> {
     ImuSample::new(
@@ -259,10 +260,10 @@ fn state_control() {
             spec.set_dof(dof).unwrap();
             let mut f = spec.build::<f64>();
             f.update(&level_sample(), 0.01);
-            f.set_quat(target);
+            f.set_quat(target, None).unwrap();
             assert!(f.quat().angle_to(target) < 1e-9, "{name}: set_quat");
 
-            f.set_heading(-1.2);
+            f.set_heading(-1.2).unwrap();
             let (heading, incl) = f.quat().heading_inclination();
             let (_, target_incl) = target.heading_inclination();
             assert!((heading + 1.2).abs() < 1e-9, "{name}: heading {heading}");
@@ -272,10 +273,12 @@ fn state_control() {
             );
 
             let bias = Vec3::new(0.01, -0.02, 0.005);
-            if f.set_bias(bias) {
-                assert_eq!(f.bias(), bias, "{name}: set_bias");
-            } else {
-                assert_eq!(f.bias(), Vec3::zero(), "{name}: no bias");
+            match f.set_bias(bias, None) {
+                Ok(()) => assert_eq!(f.bias(), bias, "{name}: set_bias"),
+                Err(StateError::Unsupported(_)) => {
+                    assert_eq!(f.bias(), Vec3::zero(), "{name}: no bias")
+                }
+                Err(e) => panic!("{name}: {e}"),
             }
             // The filter keeps running from there: the same orientation at rest stays put
             // (within what one correction can move it).
@@ -302,7 +305,7 @@ fn flagship_starts_from_a_preset_orientation() {
     let mut spec = FilterSpec::new("sqrt-eskf").unwrap();
     spec.set_dof(Dof::Six).unwrap();
     let mut f = spec.build::<f64>();
-    f.set_quat(preset);
+    f.set_quat(preset, None).unwrap();
     // Level and at rest: gravity agrees with the preset (whose heading is 1 rad).
     f.update(&level_sample(), 0.01);
     assert!(f.quat().angle_to(preset) < 1e-6, "{:?}", f.quat());
@@ -349,4 +352,120 @@ fn struct_literals_are_validated() {
             ..
         }
     ));
+}
+
+/// `reset` then the same samples gives the same bits as a new filter, for every registered
+/// filter in 6D and 9D, f64 and f32x8: orientation, bias, covariance and flags, on a
+/// recording with motion, rest and a magnetic disturbance, reset after a different one.
+#[test]
+fn reset_is_a_new_filter_for_every_filter() {
+    fn bits<T: Lane>(f: &impl OrientationFilter<T>) -> Vec<u64> {
+        let q = f.quat();
+        let b = f.bias();
+        let mut v: Vec<T> = vec![q.w, q.x, q.y, q.z, b.x, b.y, b.z];
+        if let Some(p) = f.attitude_covariance() {
+            v.extend(p.m.iter().flatten().copied());
+        }
+        let mut out: Vec<u64> = v
+            .iter()
+            .flat_map(|x| (0..T::LANES).map(move |i| x.extract(i).into().to_bits()))
+            .collect();
+        let flags = f.flags();
+        out.extend((0..T::LANES).map(|i| u64::from(flags.bits(i))));
+        out
+    }
+    fn check<T: Lane>(spec: &FilterSpec, name: &str) {
+        let first = scenario("long-rest", 1, 8.0, 100.0).unwrap();
+        let then = scenario("magnetic-disturbance", 2, 8.0, 100.0).unwrap();
+        let feed = |f: &mut rootfuse_attitude::registry::AnyFilter<T>,
+                    i: usize,
+                    rec: &rootfuse_attitude::Recording| {
+            let s = rec.sample(i);
+            let lane =
+                |v: Vec3<f64>| Vec3::new(T::from_f64(v.x), T::from_f64(v.y), T::from_f64(v.z));
+            f.update(
+                &ImuSample::new(lane(s.gyr), lane(s.acc), lane(s.mag)),
+                T::from_f64(rec.dt(i)),
+            );
+        };
+        let mut fresh = spec.build::<T>();
+        let mut used = spec.build::<T>();
+        for i in 0..first.len() {
+            feed(&mut used, i, &first);
+        }
+        used.reset();
+        for i in 0..then.len() {
+            feed(&mut fresh, i, &then);
+            feed(&mut used, i, &then);
+            assert_eq!(bits(&used), bits(&fresh), "{name}: sample {i} after reset");
+        }
+    }
+    for &kind in FilterKind::ALL {
+        for dof in [Dof::Six, Dof::Nine] {
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            let name = format!("{} {dof}", kind.name());
+            check::<f64>(&spec, &name);
+            check::<wide::f32x8>(&spec, &name);
+        }
+    }
+}
+
+/// The setters refuse a NaN or absurd value with nothing changed, in every filter; a
+/// `sigma` is read back from `attitude_covariance` where the filter carries one and refused
+/// as unsupported where it does not.
+#[test]
+fn setters_refuse_bad_values_and_set_sigma() {
+    let q = Quat::from_euler_zyx(0.4, 0.1, -0.05);
+    for &kind in FilterKind::ALL {
+        for dof in [Dof::Six, Dof::Nine] {
+            let name = format!("{} {dof}", kind.name());
+            let mut spec = FilterSpec::new(kind.name()).unwrap();
+            spec.set_dof(dof).unwrap();
+            let mut f = spec.build::<f64>();
+            for _ in 0..300 {
+                f.update(&level_sample(), 0.01);
+            }
+            let kept = format!("{f:?}");
+            let nan = f64::NAN;
+            let refused = [
+                f.set_quat(Quat::new(nan, 0.0, 0.0, 0.0), None),
+                f.set_quat(Quat::new(3.0, 0.0, 0.0, 0.0), None),
+                f.set_quat(q, Some(nan)),
+                f.set_quat(q, Some(-0.1)),
+                f.set_bias(Vec3::new(nan, 0.0, 0.0), None),
+                f.set_bias(Vec3::new(0.0, 2.0, 0.0), None),
+                f.set_bias(Vec3::zero(), Some(nan)),
+                f.set_heading(nan),
+            ];
+            for (i, r) in refused.iter().enumerate() {
+                assert!(r.is_err(), "{name}: case {i} accepted");
+            }
+            assert_eq!(
+                format!("{f:?}"),
+                kept,
+                "{name}: a refusal changed the state"
+            );
+
+            let has_cov = f.attitude_covariance().is_some();
+            match f.set_quat(q, Some(0.02)) {
+                Ok(()) => {
+                    assert!(has_cov, "{name}: sigma taken without a covariance");
+                    let p = f.attitude_covariance().unwrap();
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            let want = if i == j { 0.02 * 0.02 } else { 0.0 };
+                            assert!((p.m[i][j] - want).abs() < 1e-12, "{name}: P[{i}][{j}]");
+                        }
+                    }
+                    assert!(f.quat().angle_to(q) < 1e-9, "{name}: orientation");
+                }
+                Err(StateError::Unsupported(_)) => {
+                    assert!(!has_cov, "{name}: sigma refused with a covariance");
+                    assert_eq!(format!("{f:?}"), kept, "{name}: state changed");
+                }
+                Err(e) => panic!("{name}: {e}"),
+            }
+        }
+    }
 }

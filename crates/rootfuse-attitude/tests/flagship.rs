@@ -75,7 +75,7 @@ fn magnetometer_never_tilts() {
         let (_, i9) = f.quat9().heading_inclination();
         let (_, i6) = f.quat6().heading_inclination();
         assert!(i9.angle_to(i6) < 1e-9, "sample {i}");
-        flagged += f.mag_disturbed() as usize;
+        flagged += f.magnetic_disturbance().unwrap() as usize;
     }
     assert!(flagged > 0, "the disturbance was never detected");
 }
@@ -88,7 +88,7 @@ fn rest_is_detected_and_bias_learned() {
     let mut rest = 0usize;
     for i in 0..rec.len() {
         f.update(&rec.sample(i), rec.dt(i));
-        rest += f.at_rest() as usize;
+        rest += f.rest_detected().unwrap() as usize;
     }
     // 80 % of the run is rest; allow the detection delay.
     assert!(
@@ -131,7 +131,11 @@ fn f32_agrees_with_f64() {
             "{dof}D: f32 vs f64 99.5 % {p995:.4}°, max {worst:.4}°"
         );
         assert!(fb.covariance().is_finite().all());
-        assert_eq!(fa.at_rest(), fb.at_rest(), "{dof}D: rest flags at the end");
+        assert_eq!(
+            fa.rest_detected().unwrap(),
+            fb.rest_detected().unwrap(),
+            "{dof}D: rest flags at the end"
+        );
     }
     // Rest flags sample by sample.
     let p = params(6.0);
@@ -145,7 +149,7 @@ fn f32_agrees_with_f64() {
             &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
             rec.dt(i) as f32,
         );
-        differ += usize::from(fa.at_rest() != fb.at_rest());
+        differ += usize::from(fa.rest_detected().unwrap() != fb.rest_detected().unwrap());
     }
     assert!(
         differ * 1000 <= rec.len(),
@@ -184,7 +188,7 @@ fn check_cov(f: &SqrtEskf<f32>) -> Result<(), TestCaseError> {
     let eps = f32::from_f64(1e-12);
     let (_, ok) = (p + Mat::identity().scale(eps)).cholesky();
     prop_assert!(ok, "not PD: {p:?}");
-    let a = f.attitude_covariance();
+    let a = f.attitude_covariance().unwrap();
     prop_assert!(a.is_finite().all() && a.m[0][0] > 0.0 && a.m[2][2] > 0.0);
     // The inclination block is that of the full covariance, bit for bit off the diagonal (it
     // is computed from the factor's first rows alone); the diagonal adds the model error,
@@ -329,7 +333,7 @@ fn reset_is_a_new_filter() {
     }
 }
 
-/// `set_quat_with_sigma` sets the attitude covariance with the orientation: read back as
+/// `set_quat` with a `sigma` sets the attitude covariance with the orientation: read back as
 /// `sigma²·I` at once, kept through the first sample when set before it (not replaced by
 /// the initial covariance), and refused with nothing changed for a NaN, negative or too
 /// large `sigma` and a quaternion far from unit norm.
@@ -340,8 +344,8 @@ fn set_quat_with_sigma_sets_the_covariance() {
     for dof in [9.0, 6.0] {
         // Running: σ² on the diagonal at once, no correlation left.
         let (_, mut f) = run::<f64>(&rec, dof);
-        f.set_quat_with_sigma(q, 0.03).unwrap();
-        let p = f.attitude_covariance();
+        f.set_quat(q, Some(0.03)).unwrap();
+        let p = f.attitude_covariance().unwrap();
         for i in 0..3 {
             for j in 0..3 {
                 let want = if i == j { 0.03 * 0.03 } else { 0.0 };
@@ -357,12 +361,15 @@ fn set_quat_with_sigma_sets_the_covariance() {
         // where a plain `set_quat` starts from the initial covariance.
         let first = &rec.sample(0);
         let mut with = SqrtEskf::<f64>::new(&params(dof));
-        with.set_quat_with_sigma(q, 0.001).unwrap();
+        with.set_quat(q, Some(0.001)).unwrap();
         with.update(first, rec.dt(0));
         let mut plain = SqrtEskf::<f64>::new(&params(dof));
-        plain.set_quat(q);
+        plain.set_quat(q, None).unwrap();
         plain.update(first, rec.dt(0));
-        let (pw, pp) = (with.attitude_covariance(), plain.attitude_covariance());
+        let (pw, pp) = (
+            with.attitude_covariance().unwrap(),
+            plain.attitude_covariance().unwrap(),
+        );
         assert!(
             pw.m[0][0] < 2.0 * 0.001 * 0.001 && pw.m[0][0] < pp.m[0][0] / 4.0,
             "{dof}D: σ² = 1e-6 became {} (plain preset {})",
@@ -378,25 +385,25 @@ fn set_quat_with_sigma_sets_the_covariance() {
             (Quat::new(1e-16, 1e-16, 0.0, 0.0), 0.1),
             (Quat::new(f64::NAN, 0.0, 0.0, 0.0), 0.1),
         ] {
-            let e = f.set_quat_with_sigma(q_bad, sigma).unwrap_err();
+            let e = f.set_quat(q_bad, Some(sigma)).unwrap_err();
             assert!(e.to_string().contains("outside"), "{e}");
         }
         assert_eq!(format!("{f:?}"), format!("{before:?}"));
     }
 }
 
-/// `set_bias_with_sigma` sets the bias and its covariance `σ²·I`, removes the attitude–bias
+/// `set_bias` with a `sigma` sets the bias and its covariance `σ²·I`, removes the attitude–bias
 /// correlation and keeps the attitude covariance; refusals change nothing.
 #[test]
 fn set_bias_with_sigma_keeps_the_attitude_covariance() {
     let rec = scenario("slow-rotation", 3, 10.0, 100.0).unwrap();
     for dof in [9.0, 6.0] {
         let (_, mut f) = run::<f64>(&rec, dof);
-        let before = f.attitude_covariance();
+        let before = f.attitude_covariance().unwrap();
         let b = Vec3::new(0.01, -0.003, 0.002);
-        f.set_bias_with_sigma(b, 2e-3).unwrap();
+        f.set_bias(b, Some(2e-3)).unwrap();
         assert_eq!(f.bias(), b);
-        let after = f.attitude_covariance();
+        let after = f.attitude_covariance().unwrap();
         for i in 0..3 {
             for j in 0..3 {
                 let d = (after.m[i][j] - before.m[i][j]).abs();
@@ -426,7 +433,7 @@ fn set_bias_with_sigma_keeps_the_attitude_covariance() {
             (b, f64::NAN),
             (b, -1.0),
         ] {
-            assert!(f.set_bias_with_sigma(bias, sigma).is_err());
+            assert!(f.set_bias(bias, Some(sigma)).is_err());
         }
         assert_eq!(format!("{f:?}"), kept);
         // The filter runs on from there.

@@ -6,7 +6,7 @@ use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rootfuse_attitude::filters::{ParamKind, Rejections};
+use rootfuse_attitude::filters::{ParamKind, Rejections, StateError};
 use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
@@ -382,11 +382,21 @@ impl Filter {
         Ok(x)
     }
     /// The error for `sigma=` on a filter whose covariance cannot be set.
-    fn no_sigma(&self) -> PyErr {
-        PyValueError::new_err(format!(
-            "sigma: only the flagship (sqrt-eskf) sets its covariance with the state; `{}` takes the value alone",
-            self.kind_name()
-        ))
+    /// What a refused state setter raises: ValueError for a value out of range; for a
+    /// state the filter does not carry, ValueError when a `sigma` was given (it cannot be
+    /// kept), `Ok(false)` otherwise (the documented "not taken").
+    fn state_result(&self, r: Result<(), StateError>, sigma_given: bool) -> PyResult<bool> {
+        match r {
+            Ok(()) => Ok(true),
+            Err(StateError::Unsupported(what)) if sigma_given => {
+                Err(PyValueError::new_err(format!(
+                    "sigma: `{}` carries no {what} (sqrt-eskf and ekf set their covariance with the state); call without sigma",
+                    self.kind_name()
+                )))
+            }
+            Err(StateError::Unsupported(_)) => Ok(false),
+            Err(e) => Err(PyValueError::new_err(e.to_string())),
+        }
     }
 }
 
@@ -633,8 +643,9 @@ impl Filter {
     /// Sets the orientation `[w, x, y, z]` (sensor to earth, ENU; normalised by the filter)
     /// and marks the filter initialised: the next samples correct from there instead of
     /// starting over from the accelerometer. Learned state (bias, covariance) is kept.
-    /// `sigma` (rad, flagship only): the orientation's standard deviation per earth axis;
-    /// `covariance()` then reads `sigma²·I` (the attitude–bias correlation removed).
+    /// `sigma` (rad; sqrt-eskf and ekf, the filters with a covariance): the orientation's
+    /// standard deviation per earth axis; `covariance()` then reads `sigma²·I` (the
+    /// attitude–bias correlation removed).
     #[pyo3(signature = (q, sigma=None))]
     fn set_quat(&self, q: &Bound<'_, PyAny>, sigma: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
         let q = quat_arg(q, "q")?;
@@ -646,17 +657,13 @@ impl Filter {
                 "q: norm {norm:.3e} is far from 1: expected a unit quaternion [w, x, y, z] (a small deviation is normalised)"
             )));
         }
+        let sigma = sigma.map(|s| self.sigma(s, "sigma")).transpose()?;
         let mut state = self.lock()?;
-        match sigma.map(|s| self.sigma(s, "sigma")).transpose()? {
-            None => with_state!(&mut *state, f => f.set_quat(rootfuse_attitude::Quat::from_f64(q))),
-            Some(sigma) => with_state!(&mut *state, f => match f {
-                AnyFilter::SqrtEskf(f) => f
-                    .set_quat_with_sigma(rootfuse_attitude::Quat::from_f64(q), Lane::from_f64(sigma))
-                    .map_err(|e| PyValueError::new_err(e.to_string()))?,
-                _ => return Err(self.no_sigma()),
-            }),
-        }
-        Ok(())
+        let r = with_state!(&mut *state, f => {
+            f.set_quat(rootfuse_attitude::Quat::from_f64(q), sigma.map(|s| Lane::from_f64(s)))
+        });
+        // A quaternion without a sigma is taken by every filter.
+        self.state_result(r, sigma.is_some()).map(|_| ())
     }
 
     /// Sets the gyro-bias estimate, rad/s (sensor frame, 3 numbers), kept from there (also
@@ -666,7 +673,8 @@ impl Filter {
     /// `complementary-reconstruction` takes it in place of its still-period mean once the
     /// still period (`still_s`) is over, False during it (the mean is being taken);
     /// `lsq-fusion` clamps it to `drift_max`, as every estimate of its drift.
-    /// `sigma` (rad/s, flagship only): the bias's standard deviation per axis, set with it.
+    /// `sigma` (rad/s; sqrt-eskf, ekf and ecf-ekf): the bias's standard deviation per axis,
+    /// set with it. A component above 1 rad/s is refused (no gyro bias is that large).
     #[pyo3(signature = (bias, sigma=None))]
     fn set_bias(
         &self,
@@ -686,17 +694,12 @@ impl Filter {
                 f32::MAX
             )));
         }
+        let sigma = sigma.map(|s| self.sigma(s, "sigma")).transpose()?;
         let mut state = self.lock()?;
-        match sigma.map(|s| self.sigma(s, "sigma")).transpose()? {
-            None => Ok(with_state!(&mut *state, f => f.set_bias(Vec3::from_f64(b)))),
-            Some(sigma) => with_state!(&mut *state, f => match f {
-                AnyFilter::SqrtEskf(f) => f
-                    .set_bias_with_sigma(Vec3::from_f64(b), Lane::from_f64(sigma))
-                    .map(|()| true)
-                    .map_err(|e| PyValueError::new_err(e.to_string())),
-                _ => Err(self.no_sigma()),
-            }),
-        }
+        let r = with_state!(&mut *state, f => {
+            f.set_bias(Vec3::from_f64(b), sigma.map(|s| Lane::from_f64(s)))
+        });
+        self.state_result(r, sigma.is_some())
     }
 
     /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
@@ -708,8 +711,8 @@ impl Filter {
             )));
         }
         let mut state = self.lock()?;
-        with_state!(&mut *state, f => f.set_heading(Lane::from_f64(heading)));
-        Ok(())
+        let r = with_state!(&mut *state, f => f.set_heading(Lane::from_f64(heading)));
+        self.state_result(r, false).map(|_| ())
     }
 
     /// Back to the state just after construction (same parameters and precision).

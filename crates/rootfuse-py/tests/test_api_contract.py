@@ -339,7 +339,15 @@ def test_flagship_state_is_set_with_its_uncertainty():
             with pytest.raises((ValueError, TypeError), match="sigma"):
                 f.set_quat(q, sigma=bad)
         assert np.allclose(f.covariance, before, atol=tol, rtol=1e-5)
-    with pytest.raises(ValueError, match="sigma: only the flagship"):
+    with pytest.raises(ValueError, match="sigma: `mahony` carries no attitude covariance"):
         rf.Filter("mahony").set_quat([1.0, 0.0, 0.0, 0.0], sigma=0.1)
-    with pytest.raises(ValueError, match="sigma: only the flagship"):
-        rf.Filter("ekf").set_bias([0.0, 0.0, 0.0], sigma=0.1)
+    with pytest.raises(ValueError, match="sigma: `gyro` carries no gyro-bias estimate"):
+        rf.Filter("gyro").set_bias([0.0, 0.0, 0.0], sigma=0.1)
+    # The EKF carries a covariance too: sigma is read back as sigma².
+    ekf = rf.Filter("ekf")
+    ekf.set_quat([1.0, 0.0, 0.0, 0.0], sigma=0.05)
+    assert np.allclose(ekf.covariance, np.eye(3) * 0.05**2, atol=1e-12)
+    # A bias above 1 rad/s is a unit error, refused with nothing changed.
+    with pytest.raises(ValueError, match="bias"):
+        ekf.set_bias([0.0, 2.0, 0.0])
+    assert np.allclose(ekf.bias, 0.0)

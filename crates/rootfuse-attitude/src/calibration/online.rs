@@ -139,6 +139,14 @@ impl<T: Lane> OnlineHardIron<T> {
         })
     }
 
+    /// Back to the state of a new estimator with the same parameters.
+    pub fn reset(&mut self) {
+        // `new` succeeded with these parameters when `self` was built, so it does again.
+        if let Ok(fresh) = Self::new(self.params) {
+            *self = fresh;
+        }
+    }
+
     /// Learns from one raw reading (NaN = no reading: nothing happens in that lane) and
     /// returns it corrected by the applied offset (unchanged where none is applied yet).
     pub fn update(&mut self, mag: Vec3<T>) -> Vec3<T> {

@@ -2,7 +2,7 @@
 
 use super::online::{OnlineHardIron, OnlineHardIronParams};
 use crate::blocks::magnetic_heading_error;
-use crate::filters::{OrientationFilter, Rejections, SampleFlags};
+use crate::filters::{OrientationFilter, Rejections, SampleFlags, StateError};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat};
 use rootfuse_lsq::rls::RlsError;
@@ -53,7 +53,10 @@ impl<T: Lane, F: OrientationFilter<T>> OrientationFilter<T> for MagCalibrated<T,
             let q = self.inner.quat();
             let (err, ok) = magnetic_heading_error(q, mag);
             let (current, _) = q.heading_inclination();
-            self.inner
+            // Refused only for a non-finite heading, which `ok` and a finite `q` exclude;
+            // then every lane keeps its heading, as the lanes that did not switch do.
+            let _ = self
+                .inner
                 .set_heading(T::select(fresh & ok, current + err, current));
         }
         self.inner.update(&ImuSample { mag, ..*sample }, dt);
@@ -79,13 +82,19 @@ impl<T: Lane, F: OrientationFilter<T>> OrientationFilter<T> for MagCalibrated<T,
     fn flags(&self) -> SampleFlags<T> {
         self.inner.flags()
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.inner.set_quat(q)
+    /// The inner filter and the calibration both start over.
+    fn reset(&mut self) {
+        self.inner.reset();
+        self.calibration.reset();
+        self.was_active = T::Mask::splat(false);
     }
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-        self.inner.set_bias(bias)
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.inner.set_quat(q, sigma)
     }
-    fn set_heading(&mut self, heading: T) {
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.inner.set_bias(bias, sigma)
+    }
+    fn set_heading(&mut self, heading: T) -> Result<(), StateError> {
         self.inner.set_heading(heading)
     }
 }

@@ -3,6 +3,7 @@
 
 use super::LaneParams;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params, up};
+use super::{StateError, quat_without_covariance};
 use crate::blocks::{LowPassGain, integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -37,6 +38,7 @@ pub struct Complementary<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    params: ComplementaryParams,
 }
 
 impl<T: Lane> Complementary<T> {
@@ -53,6 +55,7 @@ impl<T: Lane> Complementary<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            params: p.first().clone(),
         }
     }
 }
@@ -89,9 +92,15 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
 
         self.q = Quat::select(s.step, q, self.q);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.q = q.normalize();
+    fn reset(&mut self) {
+        self.q = Quat::identity();
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.rejections = Rejections::default();
+    }
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.q = quat_without_covariance(q, sigma)?;
         self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -3,6 +3,7 @@
 use super::LaneParams;
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::blocks::{acc_mag_quat, coning_rotation_vector};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -90,6 +91,7 @@ pub struct ComplementaryReconstruction<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    params: ComplementaryReconstructionParams,
 }
 
 /// Online statistics of the still period and the estimates frozen at its end.
@@ -234,6 +236,7 @@ impl<T: Lane> ComplementaryReconstruction<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            params: p.first().clone(),
         }
     }
     /// The blend weight α of the gyro quaternion used by the last update (0: observation only,
@@ -327,9 +330,19 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
         self.prev_gyr = Vec3::select(s.step, s.gyr, self.prev_gyr);
         self.has_prev |= s.step;
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.q = q.normalize();
+    fn reset(&mut self) {
+        self.q = Quat::identity();
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.prev_gyr = Vec3::zero();
+        self.has_prev = <T::Mask as Mask>::splat(false);
+        self.alpha = T::zero();
+        self.still = Still::new();
+        self.rejections = Rejections::default();
+    }
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.q = quat_without_covariance(q, sigma)?;
         self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q
@@ -337,14 +350,17 @@ impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
     fn bias(&self) -> Vec3<T> {
         self.still.bias
     }
-    /// Replaces the still-period mean once the still period is over (in every lane); `false`
+    /// Replaces the still-period mean once the still period is over (in every lane); refused
     /// (and nothing changed) during it, while the mean is being taken.
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let bias = bias_without_covariance(bias, sigma)?;
         if self.still.elapsed.simd_lt(self.still_s).any() {
-            return false;
+            return Err(StateError::Unsupported(
+                "gyro-bias estimate yet (its still period is taking the mean)",
+            ));
         }
         self.still.bias = bias;
-        true
+        Ok(())
     }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections

@@ -1,11 +1,12 @@
 //! A quaternion EKF observing an explicit complementary filter (a patent) [`ecf-ekf`].
 
 use super::LaneParams;
-use super::ekf::State;
+use super::ekf::{State, set_bias_variance};
 use super::{
     Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
     up,
 };
+use super::{StateError, checked_bias, checked_sigma, quat_without_covariance};
 use crate::preprocess::MovingMean;
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat};
@@ -91,6 +92,9 @@ pub struct EcfEkf<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    /// `init_bias_std²`, rad²/s², for `reset`.
+    init_bias_var: T,
+    params: EcfEkfParams,
 }
 
 impl<T: Lane> EcfEkf<T> {
@@ -100,11 +104,12 @@ impl<T: Lane> EcfEkf<T> {
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
     pub fn with_lane_params(p: &LaneParams<'_, EcfEkfParams, T>) -> Self {
         let window = p.first().window as usize;
+        let init_bias_var = p.coef(|p| p.init_bias_std * p.init_bias_std);
         Self {
             means: core::array::from_fn(|_| MovingMean::with_len(window)),
             ecf_q: Quat::identity(),
             integral: Vec3::zero(),
-            x: State::new(p.coef(|p| p.init_bias_std * p.init_bias_std)),
+            x: State::new(init_bias_var),
             initialized: <T::Mask as Mask>::splat(false),
             kp: p.coef(|p| p.kp),
             ki: p.coef(|p| p.ki),
@@ -115,6 +120,8 @@ impl<T: Lane> EcfEkf<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            init_bias_var,
+            params: p.first().clone(),
         }
     }
     /// The complementary filter's own orientation (the EKF's observation), sensor to earth.
@@ -203,15 +210,31 @@ impl<T: Lane> OrientationFilter<T> for EcfEkf<T> {
         self.x.bias = Vec3::select(s.step, x.bias, self.x.bias);
         self.x.p = Mat::select(s.step, &x.p, &self.x.p);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        let q = q.normalize();
+    fn reset(&mut self) {
+        let window = self.params.window as usize;
+        self.means = core::array::from_fn(|_| MovingMean::with_len(window));
+        self.ecf_q = Quat::identity();
+        self.integral = Vec3::zero();
+        self.x = State::new(self.init_bias_var);
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.rejections = Rejections::default();
+    }
+    /// A `sigma` is refused: the filter reports no attitude covariance (see
+    /// `attitude_covariance`).
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let q = quat_without_covariance(q, sigma)?;
         self.x.q = q;
         self.ecf_q = q;
         self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
     }
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let bias = checked_bias(bias)?;
+        if let Some(sigma) = sigma {
+            set_bias_variance(&mut self.x.p, checked_sigma(sigma, 1.0)? * sigma);
+        }
         self.x.bias = bias;
-        true
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.x.q

@@ -5,6 +5,7 @@ use super::{
     Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
     up,
 };
+use super::{StateError, checked_bias, checked_quat, checked_sigma};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat};
 
@@ -53,6 +54,9 @@ pub struct Ekf<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    /// `init_bias_std²`, rad²/s², for `reset`.
+    init_bias_var: T,
+    params: EkfParams,
 }
 
 impl<T: Lane> Ekf<T> {
@@ -61,7 +65,8 @@ impl<T: Lane> Ekf<T> {
     /// A filter whose lanes may have different parameters ([`LaneParams`]); the structural
     /// ones (`dof`, switches, window lengths, screening limits) come from the first set.
     pub fn with_lane_params(p: &LaneParams<'_, EkfParams, T>) -> Self {
-        let x = State::new(p.coef(|p| p.init_bias_std * p.init_bias_std));
+        let init_bias_var = p.coef(|p| p.init_bias_std * p.init_bias_std);
+        let x = State::new(init_bias_var);
         Self {
             q: x.q,
             bias: x.bias,
@@ -76,6 +81,8 @@ impl<T: Lane> Ekf<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            init_bias_var,
+            params: p.first().clone(),
         }
     }
     /// The 7×7 state covariance (quaternion components, then bias).
@@ -159,13 +166,42 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
         self.bias = Vec3::select(s.step, self.bias, b_prev);
         self.p = Mat::select(s.step, &self.p, &p_prev);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.q = q.normalize();
-        self.initialized = <T::Mask as Mask>::splat(true);
+    fn reset(&mut self) {
+        let x = State::new(self.init_bias_var);
+        (self.q, self.bias, self.p) = (x.q, x.bias, x.p);
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.rejections = Rejections::default();
     }
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let q = checked_quat(q)?;
+        if let Some(sigma) = sigma {
+            let sigma = checked_sigma(sigma, core::f64::consts::PI)?;
+            // `δq = ½·Jᵀ·δθ` inverts `δθ = 2·J·δq` (`J·Jᵀ = I`, `J·q = 0`): a global error
+            // of `σ²·I` is `P_qq = ¼·σ²·(I − q·qᵀ)`, uncorrelated with the bias.
+            let qv = [q.w, q.x, q.y, q.z];
+            let quarter = sigma * sigma * T::from_f64(0.25);
+            for i in 0..7 {
+                for j in 0..7 {
+                    if i < 4 && j < 4 {
+                        let eye = if i == j { T::one() } else { T::zero() };
+                        self.p.m[i][j] = quarter * (eye - qv[i] * qv[j]);
+                    } else if (i < 4) != (j < 4) {
+                        self.p.m[i][j] = T::zero();
+                    }
+                }
+            }
+        }
+        self.q = q;
+        self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
+    }
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let bias = checked_bias(bias)?;
+        if let Some(sigma) = sigma {
+            set_bias_variance(&mut self.p, checked_sigma(sigma, 1.0)? * sigma);
+        }
         self.bias = bias;
-        true
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q
@@ -185,6 +221,18 @@ impl<T: Lane> OrientationFilter<T> for Ekf<T> {
             }
             .attitude_covariance(),
         )
+    }
+}
+
+/// The bias block of a 7-state covariance becomes `var·I` (rad²/s²), uncorrelated with the
+/// quaternion.
+pub(crate) fn set_bias_variance<T: Lane>(p: &mut Mat<T, 7, 7>, var: T) {
+    for i in 4..7 {
+        for j in 0..7 {
+            let v = if i == j { var } else { T::zero() };
+            p.m[i][j] = v;
+            p.m[j][i] = v;
+        }
     }
 }
 

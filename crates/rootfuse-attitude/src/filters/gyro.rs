@@ -2,6 +2,7 @@
 
 use super::LaneParams;
 use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{StateError, quat_without_covariance};
 use crate::{ImuSample, Quat, blocks::integrate_gyro};
 use rootfuse_lane::{Lane, Mask};
 
@@ -21,6 +22,7 @@ pub struct GyroIntegration<T: Lane> {
     initialized: T::Mask,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    params: GyroParams,
 }
 
 impl<T: Lane> GyroIntegration<T> {
@@ -34,6 +36,7 @@ impl<T: Lane> GyroIntegration<T> {
             initialized: <T::Mask as Mask>::splat(!params.first().init_from_acc),
             limits: params.first().screen_limits(),
             rejections: Rejections::default(),
+            params: params.first().clone(),
         }
     }
 }
@@ -44,9 +47,15 @@ impl<T: Lane> OrientationFilter<T> for GyroIntegration<T> {
         let q = initialise(self.q, &mut self.initialized, &s, false);
         self.q = Quat::select(s.step, integrate_gyro(q, s.gyr, s.dt), self.q);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.q = q.normalize();
+    fn reset(&mut self) {
+        self.q = Quat::identity();
+        self.initialized = <T::Mask as Mask>::splat(!self.params.init_from_acc);
+        self.rejections = Rejections::default();
+    }
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.q = quat_without_covariance(q, sigma)?;
         self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -3,6 +3,7 @@
 use super::LaneParams;
 use super::complementary::tilt_correction;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{StateError, quat_without_covariance};
 use crate::blocks::{LowPassGain, integrate_gyro, true_heading_error};
 use crate::preprocess::{LowPass, MovingMean, MovingMedian, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
@@ -142,6 +143,9 @@ pub struct HeadingPipeline<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    /// The low-pass factor of both pre-processing chains, for `reset`.
+    lp_factor: T,
+    params: HeadingPipelineParams,
 }
 
 impl<T: Lane> HeadingPipeline<T> {
@@ -155,6 +159,7 @@ impl<T: Lane> HeadingPipeline<T> {
             T::zero(),
             p.coef(|p| p.bias_std0 * p.bias_std0),
         ];
+        let lp_factor = p.coef(|p| low_pass_factor(p.lp_alpha));
         Self {
             q: Quat::identity(),
             incl: Quat::identity(),
@@ -163,8 +168,8 @@ impl<T: Lane> HeadingPipeline<T> {
             p: p0,
             psi_mems: T::zero(),
             initialized: <T::Mask as Mask>::splat(false),
-            acc_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
-            mag_chain: VecChain::new(p.coef(|p| low_pass_factor(p.lp_alpha))),
+            acc_chain: VecChain::new(lp_factor),
+            mag_chain: VecChain::new(lp_factor),
             k_acc: LowPassGain::new(p.coef(|p| p.tau_acc)),
             q_heading: p.coef(|p| p.q_heading),
             q_bias: p.coef(|p| p.q_bias),
@@ -176,6 +181,8 @@ impl<T: Lane> HeadingPipeline<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            lp_factor,
+            params: p.first().clone(),
         }
     }
     /// `ψ_MEMS`, rad, counter-clockwise about earth-up from true north (`[-π, π]`).
@@ -264,14 +271,27 @@ impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
         self.p = [0, 1, 2].map(|i| T::select(step, pn[i], p[i]));
         self.psi_mems = T::select(step, mems, psi_mems);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        let q = q.normalize();
+    fn reset(&mut self) {
+        self.q = Quat::identity();
+        self.incl = Quat::identity();
+        self.psi_kf = T::zero();
+        self.bias = T::zero();
+        self.p = self.p0;
+        self.psi_mems = T::zero();
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.acc_chain = VecChain::new(self.lp_factor);
+        self.mag_chain = VecChain::new(self.lp_factor);
+        self.rejections = Rejections::default();
+    }
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let q = quat_without_covariance(q, sigma)?;
         let (heading, incl) = q.heading_inclination();
         self.q = q;
         self.incl = incl;
         self.psi_kf = heading;
         self.psi_mems = heading;
         self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q

@@ -5,6 +5,7 @@ use super::{
     Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
     up,
 };
+use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -42,6 +43,7 @@ pub struct Madgwick<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    params: MadgwickParams,
 }
 
 impl<T: Lane> Madgwick<T> {
@@ -59,6 +61,7 @@ impl<T: Lane> Madgwick<T> {
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
+            params: p.first().clone(),
         }
     }
 }
@@ -93,13 +96,20 @@ impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
         self.q = Quat::select(s.step, q_new, self.q);
         self.bias = Vec3::select(s.step, bias, self.bias);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        self.q = q.normalize();
-        self.initialized = <T::Mask as Mask>::splat(true);
+    fn reset(&mut self) {
+        self.q = Quat::identity();
+        self.bias = Vec3::zero();
+        self.initialized = <T::Mask as Mask>::splat(false);
+        self.rejections = Rejections::default();
     }
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-        self.bias = bias;
-        true
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.q = quat_without_covariance(q, sigma)?;
+        self.initialized = <T::Mask as Mask>::splat(true);
+        Ok(())
+    }
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.bias = bias_without_covariance(bias, sigma)?;
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q

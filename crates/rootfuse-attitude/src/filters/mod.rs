@@ -45,8 +45,8 @@ macro_rules! lane_state {
 }
 pub(crate) use lane_state;
 
-/// A filter's `try_new` (validated) and `new` (one parameter set in every lane) over its
-/// `with_lane_params`: the constructor pair every filter has, written once.
+/// A filter's `try_new` (validated), `new` (one parameter set in every lane, over its
+/// `with_lane_params`) and `params()` (its `params` field): written once for every filter.
 macro_rules! uniform_constructors {
     ($params:ident) => {
         #[doc = concat!("A filter with the given parameters once they pass [`validate`](", stringify!($params), "::validate): an invalid set (a struct literal with a value out of range, or NaN) is refused instead of run.")]
@@ -58,6 +58,12 @@ macro_rules! uniform_constructors {
         /// A filter with the given parameters in every lane (not validated: see `try_new`).
         pub fn new(p: &$params) -> Self {
             Self::with_lane_params(&crate::filters::LaneParams::uniform(p))
+        }
+
+        /// The parameters the filter was built with: those of every lane after `new` or
+        /// `try_new`, those of the first lane after `with_lane_params`.
+        pub fn params(&self) -> &$params {
+            &self.params
         }
     };
 }
@@ -128,25 +134,164 @@ pub trait OrientationFilter<T: Lane> {
         }
         f
     }
-    /// Sets the orientation (sensor to earth, ENU; normalised here) in every lane and marks
-    /// the filter initialised, so the next samples correct from there instead of starting
-    /// over from the accelerometer. Filters that learn more state (bias, covariance) keep it.
-    fn set_quat(&mut self, q: Quat<T>);
-    /// Sets the gyro-bias estimate, rad/s (sensor frame); `false` (and nothing changed) for
-    /// filters without one, for `heading-pipeline`, whose estimate is one component (the
-    /// heading rate about earth-up) and cannot hold a three-axis bias, and for
-    /// `complementary-reconstruction` during its still period (the mean is being taken).
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-        let _ = bias;
-        false
+    /// Back to the state of a new filter with the same parameters: the samples that follow
+    /// give the same bits as they would in a filter just built (orientation, bias,
+    /// covariance, pre-processing windows, counters).
+    fn reset(&mut self);
+    /// Sets the orientation `q` (sensor to earth, ENU; normalised here) in every lane and
+    /// marks the filter initialised, so the next samples correct from there instead of
+    /// starting over from the accelerometer.
+    ///
+    /// `sigma` (rad, per earth axis, per lane) sets the attitude uncertainty with it, for
+    /// filters that carry one ([`attitude_covariance`](Self::attitude_covariance) then reads
+    /// `sigma`² back on its diagonal); `None` keeps the covariance learned so far.
+    ///
+    /// Refused, with nothing changed in any lane: a non-finite `q`, one whose norm is
+    /// outside [0.5, 2] (not an orientation that was meant), a `sigma` that is NaN, negative
+    /// or above π ([`StateError::Invalid`], naming the first lane's value), and a `sigma` for
+    /// a filter without an attitude covariance ([`StateError::Unsupported`]).
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError>;
+    /// Sets the gyro-bias estimate `bias` (rad/s, sensor frame) and, with `sigma` (rad/s,
+    /// per axis, per lane), its uncertainty, for filters that carry one (`None` keeps it).
+    ///
+    /// Refused, with nothing changed: a non-finite bias or one above 1 rad/s in a component
+    /// (no gyroscope bias is that large: it is a unit error), a `sigma` that is NaN,
+    /// negative or above 1 rad/s ([`StateError::Invalid`]); and by filters without a
+    /// three-axis bias estimate ([`StateError::Unsupported`]): those without one, and
+    /// `heading-pipeline`, whose estimate is one component (the heading rate about
+    /// earth-up); `complementary-reconstruction` refuses it during its still period (the
+    /// mean is being taken), and a `sigma` because it carries no bias covariance.
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let _ = (bias, sigma);
+        Err(StateError::Unsupported("gyro-bias estimate"))
     }
     /// Turns the orientation about earth-up so that its heading (yaw, rad, counter-clockwise
-    /// from north, see [`Quat::heading_inclination`]) becomes `heading`; the inclination is
-    /// kept.
-    fn set_heading(&mut self, heading: T) {
+    /// from north, see [`Quat::heading_inclination`]) becomes `heading`; the inclination and
+    /// the covariance are kept. Refused like [`set_quat`](Self::set_quat) for a non-finite
+    /// heading.
+    fn set_heading(&mut self, heading: T) -> Result<(), StateError> {
         let q = self.quat();
         let (current, _) = q.heading_inclination();
-        self.set_quat(Quat::from_heading(heading - current) * q);
+        self.set_quat(Quat::from_heading(heading - current) * q, None)
+    }
+}
+
+/// Why a filter refused a state set from outside ([`OrientationFilter::set_quat`],
+/// [`OrientationFilter::set_bias`], [`OrientationFilter::set_heading`]); nothing was changed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum StateError {
+    /// A value out of its range, or NaN (the first lane that fails).
+    Invalid(InvalidParam),
+    /// The filter carries no such state: the text names what it lacks.
+    Unsupported(&'static str),
+}
+
+impl core::fmt::Display for StateError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Invalid(e) => {
+                let InvalidParam {
+                    name,
+                    value,
+                    min,
+                    max,
+                } = e;
+                write!(
+                    f,
+                    "`{name}` = {value} is outside [{min}, {max}]; nothing was set"
+                )
+            }
+            Self::Unsupported(what) => write!(
+                f,
+                "this filter carries no {what}; nothing was set (the flagship carries all)"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for StateError {}
+
+impl From<InvalidParam> for StateError {
+    fn from(e: InvalidParam) -> Self {
+        Self::Invalid(e)
+    }
+}
+
+/// The value of the first lane where `ok` fails, as f64.
+fn first_failing<T: Lane>(value: T, ok: T::Mask) -> Option<f64> {
+    (0..T::LANES)
+        .find(|&i| !ok.test(i))
+        .map(|i| value.extract(i).into())
+}
+
+/// `q` normalised, if every lane's norm is in [0.5, 2] (NaN fails).
+pub(crate) fn checked_quat<T: Lane>(q: Quat<T>) -> Result<Quat<T>, StateError> {
+    let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+    let ok = norm.simd_ge(T::from_f64(0.5)) & norm.simd_le(T::from_f64(2.0));
+    match first_failing(norm, ok) {
+        Some(value) => Err(StateError::Invalid(InvalidParam {
+            name: "|q|",
+            value,
+            min: 0.5,
+            max: 2.0,
+        })),
+        None => Ok(q.normalize()),
+    }
+}
+
+/// `sigma` if every lane is in [0, max] (NaN fails).
+pub(crate) fn checked_sigma<T: Lane>(sigma: T, max: f64) -> Result<T, StateError> {
+    let ok = sigma.simd_ge(T::zero()) & sigma.simd_le(T::from_f64(max));
+    match first_failing(sigma, ok) {
+        Some(value) => Err(StateError::Invalid(InvalidParam {
+            name: "sigma",
+            value,
+            min: 0.0,
+            max,
+        })),
+        None => Ok(sigma),
+    }
+}
+
+/// `bias` if every component of every lane is finite and at most 1 rad/s in magnitude.
+pub(crate) fn checked_bias<T: Lane>(bias: Vec3<T>) -> Result<Vec3<T>, StateError> {
+    let largest = bias.x.abs().max(bias.y.abs()).max(bias.z.abs());
+    let nan = bias.x.is_nan() | bias.y.is_nan() | bias.z.is_nan();
+    let shown = T::select(nan, T::from_f64(f64::NAN), largest);
+    match first_failing(shown, largest.simd_le(T::one()) & !nan) {
+        Some(value) => Err(StateError::Invalid(InvalidParam {
+            name: "bias",
+            value,
+            min: -1.0,
+            max: 1.0,
+        })),
+        None => Ok(bias),
+    }
+}
+
+/// `set_quat` for filters without an attitude covariance: `q` checked and normalised, a
+/// `sigma` refused.
+pub(crate) fn quat_without_covariance<T: Lane>(
+    q: Quat<T>,
+    sigma: Option<T>,
+) -> Result<Quat<T>, StateError> {
+    let q = checked_quat(q)?;
+    match sigma {
+        Some(_) => Err(StateError::Unsupported("attitude covariance")),
+        None => Ok(q),
+    }
+}
+
+/// `set_bias` for filters without a bias covariance: `bias` checked, a `sigma` refused.
+pub(crate) fn bias_without_covariance<T: Lane>(
+    bias: Vec3<T>,
+    sigma: Option<T>,
+) -> Result<Vec3<T>, StateError> {
+    let bias = checked_bias(bias)?;
+    match sigma {
+        Some(_) => Err(StateError::Unsupported("gyro-bias covariance")),
+        None => Ok(bias),
     }
 }
 

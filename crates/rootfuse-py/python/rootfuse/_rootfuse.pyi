@@ -176,9 +176,9 @@ class Filter:
     def rejections(self) -> _Rejections:
         """Counts of what was skipped since construction or reset."""
     def set_quat(self, q: Union[Sequence[float], _FloatArray], sigma: Optional[float] = None) -> None:
-        """Sets the orientation [w, x, y, z] (normalised) and marks the filter initialised."""
+        """Sets the orientation [w, x, y, z] (normalised) and marks the filter initialised; sigma (rad) sets its covariance too (sqrt-eskf, ekf)."""
     def set_bias(self, bias: Union[Sequence[float], _FloatArray], sigma: Optional[float] = None) -> bool:
-        """Sets the gyro bias, rad/s; False for filters that cannot hold a 3-axis bias."""
+        """Sets the gyro bias, rad/s (|component| <= 1); False for filters that cannot hold a 3-axis bias; sigma (rad/s) sets its covariance too."""
     def set_heading(self, heading: float) -> None:
         """Turns about earth-up to this heading, rad (counter-clockwise from north)."""
     def reset(self) -> None:

@@ -10,6 +10,7 @@ pub use drift::{DriftConfig, DriftEstimator, DriftSample};
 
 use super::complementary::tilt_correction;
 use super::{Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, params};
+use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::blocks::{LowPassGain, acc_mag_quat};
 use crate::preprocess::{Hampel, LowPass, hampel_threshold, low_pass_factor};
 use crate::{ImuSample, Quat, Vec3};
@@ -132,6 +133,19 @@ pub struct LsqFusion<T: Lane> {
     mag_drift_weight: T,
     limits: ScreenLimits,
     rejections: Rejections<T>,
+    /// The stateful stages as built, for `reset`.
+    initial: Stages<T>,
+    params: LsqFusionParams,
+}
+
+/// The stages of [`LsqFusion`] that carry state.
+#[derive(Clone, Debug)]
+struct Stages<T: Lane> {
+    hampel: [Hampel<T, 5>; 3],
+    smooth: [LowPass<T>; 3],
+    denoise: [PolyDenoiser<T, 3>; 3],
+    drift: DriftEstimator<T>,
+    fusion: Potter<T, 4>,
 }
 
 /// Gravity the accelerometer weight compares the specific-force norm with, m/s².
@@ -155,7 +169,7 @@ impl<T: Lane> LsqFusion<T> {
             RlsConfig::new(1.0),
         );
         let positive = |v: f64, default: f64| if v > 0.0 && v.is_finite() { v } else { default };
-        Self {
+        let initial = Stages {
             hampel: core::array::from_fn(|_| {
                 Hampel::with_threshold(lanes.coef(|p| hampel_threshold(p.hampel_k)))
             }),
@@ -176,6 +190,13 @@ impl<T: Lane> LsqFusion<T> {
             // non-finite x₀ or P₀ not PD; here λ = 1, no bounds, x₀ = [1, 0, 0, 0],
             // P₀ = FUSION_PRIOR·I = I.
             fusion: fusion.expect("unreachable: constant, valid prior"),
+        };
+        Self {
+            hampel: initial.hampel.clone(),
+            smooth: initial.smooth.clone(),
+            denoise: initial.denoise.clone(),
+            drift: initial.drift.clone(),
+            fusion: initial.fusion.clone(),
             q: Quat::identity(),
             fusion_gain: LowPassGain::new(lanes.coef(|p| positive(p.fusion_tau, 3.0))),
             acc_weight: lanes.coef(|p| {
@@ -190,6 +211,8 @@ impl<T: Lane> LsqFusion<T> {
             }),
             limits: p.screen_limits(),
             rejections: Rejections::default(),
+            initial,
+            params: p.clone(),
         }
     }
 
@@ -285,17 +308,32 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         };
         self.drift.update(&sample, q_a);
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        let q = q.normalize();
+    fn reset(&mut self) {
+        let Stages {
+            hampel,
+            smooth,
+            denoise,
+            drift,
+            fusion,
+        } = self.initial.clone();
+        (self.hampel, self.smooth, self.denoise) = (hampel, smooth, denoise);
+        (self.drift, self.fusion) = (drift, fusion);
+        self.q = Quat::identity();
+        self.rejections = Rejections::default();
+    }
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let q = quat_without_covariance(q, sigma)?;
         // The fusion's estimate is the quaternion: restart it there with its prior spread.
-        if let Ok(fusion) = Potter::with_isotropic_prior(
+        // Fails only for a non-finite state, which `quat_without_covariance` refused.
+        let fusion = Potter::with_isotropic_prior(
             &Vector::from_column(q.to_array()),
             T::from_f64(FUSION_PRIOR),
             RlsConfig::new(1.0),
-        ) {
-            self.fusion = fusion;
-            self.q = q;
-        }
+        )
+        .map_err(|_| StateError::Unsupported("finite quaternion state"))?;
+        self.fusion = fusion;
+        self.q = q;
+        Ok(())
     }
     fn quat(&self) -> Quat<T> {
         self.q
@@ -305,8 +343,13 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
     }
     /// Sets the drift estimate (clamped to `drift_max`, as every estimate is; its covariance
     /// kept).
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-        self.drift.set_bias(bias)
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        let bias = bias_without_covariance(bias, sigma)?;
+        if self.drift.set_bias(bias) {
+            Ok(())
+        } else {
+            Err(StateError::Unsupported("finite drift state"))
+        }
     }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections

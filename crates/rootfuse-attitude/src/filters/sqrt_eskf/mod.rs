@@ -323,7 +323,7 @@ lane_state! {
         /// start from it rather than from the accelerometer.
         preset: T::Mask,
         /// The attitude covariance came with the preset orientation
-        /// ([`SqrtEskf::set_quat_with_sigma`]): the first sample keeps it.
+        /// (`set_quat` with a `sigma`): the first sample keeps it.
         preset_covariance: T::Mask,
         mag_disturbed: T::Mask,
     }
@@ -548,6 +548,7 @@ pub struct SqrtEskf<T: Lane> {
     limits: ScreenLimits,
     rejections: Rejections<T>,
     per_dt: PerDt<T>,
+    params: SqrtEskfParams,
 }
 
 impl<T: Lane> SqrtEskf<T> {
@@ -565,6 +566,7 @@ impl<T: Lane> SqrtEskf<T> {
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
             per_dt,
+            params: p.first().clone(),
         }
     }
 
@@ -590,12 +592,8 @@ impl<T: Lane> SqrtEskf<T> {
         self.state.factor * self.state.factor.transpose()
     }
 
-    /// The attitude-error covariance (rad², earth frame) of the estimate returned by
-    /// [`quat`](OrientationFilter::quat). In 9D the heading variance is that of the magnetic
-    /// heading offset and its correlation with the inclination is not tracked (set to zero).
-    /// Both inclination variances include the model error: `model_error_scale` times the
-    /// running mean square of the inclination innovation.
-    pub fn attitude_covariance(&self) -> Mat<T, 3, 3> {
+    /// [`OrientationFilter::attitude_covariance`] without its `Option`.
+    fn attitude_block(&self) -> Mat<T, 3, 3> {
         // The attitude block of `S·Sᵀ` only (`S` upper triangular: `S_ik = 0` for `k < i`):
         // a quarter of the full product, the same sums in the same order.
         let s = &self.state.factor;
@@ -619,14 +617,10 @@ impl<T: Lane> SqrtEskf<T> {
         a
     }
 
-    /// Per lane: the sensor is currently detected at rest.
-    pub fn at_rest(&self) -> T::Mask {
+    /// Per lane: the sensor is detected at rest now ([`OrientationFilter::rest_detected`]
+    /// without its `Option`).
+    fn at_rest(&self) -> T::Mask {
         self.state.rest_timer.simd_ge(self.coef.rest_time)
-    }
-
-    /// Per lane: the last magnetometer sample was rejected as disturbed (9D only).
-    pub fn mag_disturbed(&self) -> T::Mask {
-        self.state.mag_disturbed
     }
 
     /// Heading offset `δ` (rad) that the magnetometer adds to the 6D estimate.

@@ -1,137 +1,83 @@
 //! The flagship's state set from outside: back to a new filter, and the orientation or the
-//! bias set with its uncertainty.
+//! bias set with (or without) its uncertainty.
 
 use super::*;
+use crate::filters::{StateError, checked_bias, checked_quat, checked_sigma};
 
 impl<T: Lane> SqrtEskf<T> {
-    /// Back to the state of a new filter with the same parameters: the samples that follow
-    /// give the same bits as they would in `SqrtEskf::new` (orientation, bias, covariance,
-    /// low-pass and rest states, counters).
-    ///
-    /// ```
-    /// use rootfuse_attitude::{ImuSample, OrientationFilter, SqrtEskf, SqrtEskfParams, Vec3};
-    /// let s = ImuSample::new(Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 0.0, 9.81), Vec3::zero());
-    /// let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-    /// f.update(&s, 0.01);
-    /// f.reset();
-    /// f.update(&s, 0.01);
-    /// let mut fresh = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-    /// fresh.update(&s, 0.01);
-    /// assert_eq!(f.quat(), fresh.quat());
-    /// ```
-    pub fn reset(&mut self) {
+    /// [`OrientationFilter::reset`]: the state, the counters and the per-`dt` cache rebuilt
+    /// from the coefficients.
+    pub(super) fn reset_state(&mut self) {
         self.state = State::new(&self.coef);
         self.rejections = Rejections::default();
         self.per_dt = PerDt::new(&self.coef);
     }
 
-    /// Sets the orientation `q` (sensor to earth, ENU; normalised here) as
-    /// [`set_quat`](OrientationFilter::set_quat) does, and its uncertainty: the attitude error
-    /// becomes `sigma`² · I (rad², per earth axis, every lane its own `sigma`; the model error
-    /// seen so far is forgotten), uncorrelated with the bias error, whose covariance is kept. [`attitude_covariance`](Self::attitude_covariance)
-    /// reads `sigma`² back on the diagonal.
-    ///
-    /// Refused, with nothing changed: a non-finite `q` or one whose norm is outside
-    /// [0.5, 2] (not an orientation that was meant), and a `sigma` that is NaN, negative or
-    /// above π. The error names the value of the first lane that fails.
-    ///
-    /// ```
-    /// use rootfuse_attitude::{Quat, SqrtEskf, SqrtEskfParams};
-    /// let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-    /// f.set_quat_with_sigma(Quat::from_euler_zyx(0.5, 0.1, 0.0), 0.02).unwrap();
-    /// assert!((f.attitude_covariance().m[2][2] - 0.02 * 0.02).abs() < 1e-15);
-    /// assert!(f.set_quat_with_sigma(Quat::identity(), f64::NAN).is_err());
-    /// ```
-    pub fn set_quat_with_sigma(
+    /// [`OrientationFilter::set_quat`]: with `sigma`, rows 0–2 of the upper factor `S`
+    /// become `[σ·I | 0]` (`P_θθ = σ²·I`, `P_θb = 0`, `P_bb` kept) and the model error seen so
+    /// far is forgotten (the given σ is the whole uncertainty).
+    pub(super) fn set_orientation(
         &mut self,
         q: Quat<T>,
-        sigma: T,
-    ) -> Result<(), crate::filters::InvalidParam> {
-        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
-        let first_bad = |value: T, ok: T::Mask| {
-            (0..T::LANES)
-                .find(|&i| !ok.test(i))
-                .map(|i| value.extract(i).into())
+        sigma: Option<T>,
+    ) -> Result<(), StateError> {
+        let q = checked_quat(q)?;
+        let sigma = match sigma {
+            Some(s) => Some(checked_sigma(s, core::f64::consts::PI)?),
+            None => None,
         };
-        let norm_ok = norm.simd_ge(T::from_f64(0.5)) & norm.simd_le(T::from_f64(2.0));
-        if let Some(value) = first_bad(norm, norm_ok) {
-            return Err(crate::filters::InvalidParam {
-                name: "|q|",
-                value,
-                min: 0.5,
-                max: 2.0,
-            });
-        }
-        let sigma_ok = sigma.simd_ge(T::zero()) & sigma.simd_le(T::from_f64(core::f64::consts::PI));
-        if let Some(value) = first_bad(sigma, sigma_ok) {
-            return Err(crate::filters::InvalidParam {
-                name: "sigma",
-                value,
-                min: 0.0,
-                max: core::f64::consts::PI,
-            });
-        }
-        self.set_quat(q);
-        // Rows 0–2 of the upper factor `S` become `[σ·I | 0]`: `P_θθ = σ²·I`, `P_θb = 0`,
-        // and `P_bb = S_bb·S_bbᵀ` (rows 3–5) is untouched.
+        self.move_to(q);
         let st = &mut self.state;
-        for i in 0..3 {
-            for j in 0..6 {
-                st.factor.m[i][j] = if i == j { sigma } else { T::zero() };
+        match sigma {
+            Some(sigma) => {
+                for i in 0..3 {
+                    for j in 0..6 {
+                        st.factor.m[i][j] = if i == j { sigma } else { T::zero() };
+                    }
+                }
+                st.heading_offset_var = sigma * sigma;
+                st.innovation_ms = T::zero();
+                st.preset_covariance |= !st.initialized;
             }
+            // A plain preset of a filter that has not started starts from the initial
+            // covariance.
+            None => st.preset_covariance &= st.initialized,
         }
-        st.heading_offset_var = sigma * sigma;
-        // The given σ is the whole uncertainty: the model error seen so far is forgotten.
-        st.innovation_ms = T::zero();
-        st.preset_covariance |= !st.initialized;
         Ok(())
     }
 
-    /// Sets the gyro-bias estimate `bias` (rad/s, sensor frame) and its uncertainty: the bias
-    /// error becomes `sigma`² · I (rad²/s², every lane its own `sigma`), uncorrelated with the
-    /// attitude error, whose covariance is kept. Before the first sample the bias is used from
-    /// the first gyro step on.
-    ///
-    /// Refused, with nothing changed: a non-finite bias or one above 1 rad/s in a component
-    /// (no gyroscope bias is that large; it is a unit error), and a `sigma` that is NaN,
-    /// negative or above 1 rad/s.
-    ///
-    /// ```
-    /// use rootfuse_attitude::{OrientationFilter, SqrtEskf, SqrtEskfParams, Vec3};
-    /// let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-    /// f.set_bias_with_sigma(Vec3::new(0.01, 0.0, -0.002), 1e-3).unwrap();
-    /// assert_eq!(f.bias().x, 0.01);
-    /// let s = f.covariance_factor();
-    /// assert!((s.m[5][5] * s.m[5][5] - 1e-6).abs() < 1e-18);
-    /// assert!(f.set_bias_with_sigma(Vec3::new(f64::NAN, 0.0, 0.0), 1e-3).is_err());
-    /// ```
-    pub fn set_bias_with_sigma(
+    /// The orientation moved to `q` (unit), the covariance untouched. `q6 = c ⊗ strapdown`
+    /// and `q9 = qz(δ) ⊗ q6`: with `δ = 0` both become `q`. A running filter keeps `c` and
+    /// moves the strapdown frame, so that the low-passed specific force, kept in the
+    /// quasi-inertial frame, still points along gravity there; a filter that has not started
+    /// yet starts from `q` instead of the first accelerometer sample.
+    fn move_to(&mut self, q: Quat<T>) {
+        let st = &mut self.state;
+        let moved = (st.correction.conj() * q).normalize();
+        let running = st.initialized;
+        st.strapdown = Quat::select(running, moved, Quat::identity());
+        st.correction = Quat::select(running, st.correction, q);
+        let r = st.strapdown.to_rotation_matrix();
+        st.rot_lp = Mat::select(running, &r, &st.rot_lp);
+        st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
+        st.heading_offset = T::zero();
+        st.preset |= !running;
+    }
+
+    /// [`OrientationFilter::set_bias`]: with `sigma`, the bias rows of the factor become
+    /// `σ·I` and the attitude block is refactored on its own (no attitude–bias correlation,
+    /// `P_θθ` kept). Before the first sample the bias is used from the first gyro step on.
+    pub(super) fn set_gyro_bias(
         &mut self,
         bias: Vec3<T>,
-        sigma: T,
-    ) -> Result<(), crate::filters::InvalidParam> {
-        let largest = bias.x.abs().max(bias.y.abs()).max(bias.z.abs());
-        let nan = bias.x.is_nan() | bias.y.is_nan() | bias.z.is_nan();
-        let bias_ok = largest.simd_le(T::one()) & !nan;
-        if let Some(i) = (0..T::LANES).find(|&i| !bias_ok.test(i)) {
-            return Err(crate::filters::InvalidParam {
-                name: "bias",
-                value: T::select(nan, T::from_f64(f64::NAN), largest)
-                    .extract(i)
-                    .into(),
-                min: -1.0,
-                max: 1.0,
-            });
-        }
-        let sigma_ok = sigma.simd_ge(T::zero()) & sigma.simd_le(T::one());
-        if let Some(i) = (0..T::LANES).find(|&i| !sigma_ok.test(i)) {
-            return Err(crate::filters::InvalidParam {
-                name: "sigma",
-                value: sigma.extract(i).into(),
-                min: 0.0,
-                max: 1.0,
-            });
-        }
+        sigma: Option<T>,
+    ) -> Result<(), StateError> {
+        let bias = checked_bias(bias)?;
+        let Some(sigma) = sigma else {
+            self.state.bias = bias;
+            return Ok(());
+        };
+        let sigma = checked_sigma(sigma, 1.0)?;
         // The attitude block `P_θθ = S_θθ·S_θθᵀ + S_θb·S_θbᵀ` refactored as an upper
         // triangle of its own (`S_θb` then zero: no correlation), the bias rows `σ·I`.
         let st = &mut self.state;

@@ -2,6 +2,7 @@
 //! its [`OrientationFilter`] implementation; the state and the public API are in the parent.
 
 use super::*;
+use crate::filters::StateError;
 
 impl<T: Lane> SqrtEskf<T> {
     /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
@@ -535,28 +536,14 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
             self.state.strapdown = Quat::select(integrating, strapdown, self.state.strapdown);
         }
     }
-    fn set_quat(&mut self, q: Quat<T>) {
-        // q6 = c ⊗ strapdown and q9 = qz(δ) ⊗ q6: with δ = 0 both become `q`. A running
-        // filter keeps `c` and moves the strapdown frame, so that the low-passed specific
-        // force, kept in the quasi-inertial frame, still points along gravity there; a filter
-        // that has not started yet starts from `q` instead of the first accelerometer sample.
-        let q = q.normalize();
-        let st = &mut self.state;
-        let moved = (st.correction.conj() * q).normalize();
-        let running = st.initialized;
-        st.strapdown = Quat::select(running, moved, Quat::identity());
-        st.correction = Quat::select(running, st.correction, q);
-        let r = st.strapdown.to_rotation_matrix();
-        st.rot_lp = Mat::select(running, &r, &st.rot_lp);
-        st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
-        st.heading_offset = T::zero();
-        st.preset |= !running;
-        // A plain preset starts from the initial covariance.
-        st.preset_covariance &= running;
+    fn reset(&mut self) {
+        self.reset_state();
     }
-    fn set_bias(&mut self, bias: Vec3<T>) -> bool {
-        self.state.bias = bias;
-        true
+    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.set_orientation(q, sigma)
+    }
+    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
+        self.set_gyro_bias(bias, sigma)
     }
     fn quat(&self) -> Quat<T> {
         if self.nine_d {
@@ -571,13 +558,18 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
     }
+    /// In 9D the heading variance is that of the magnetic heading offset and its correlation
+    /// with the inclination is not tracked (set to zero). Both inclination variances include
+    /// the model error: `model_error_scale` times the running mean square of the inclination
+    /// innovation. Always `Some`.
     fn attitude_covariance(&self) -> Option<Mat<T, 3, 3>> {
-        Some(SqrtEskf::attitude_covariance(self))
+        Some(self.attitude_block())
     }
     fn rest_detected(&self) -> Option<T::Mask> {
         Some(self.at_rest())
     }
+    /// 9D only (`false` in 6D).
     fn magnetic_disturbance(&self) -> Option<T::Mask> {
-        Some(self.mag_disturbed())
+        Some(self.state.mag_disturbed)
     }
 }
