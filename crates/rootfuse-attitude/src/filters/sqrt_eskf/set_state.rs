@@ -1,5 +1,7 @@
 //! The flagship's state set from outside: back to a new filter, and the orientation or the
 //! bias set with its uncertainty.
+//! The state itself (`q6 = c ⊗ q_gyr`, `q9 = qz(δ) ⊗ q6`, `P = S·Sᵀ`) is described on
+//! [`SqrtEskf`].
 
 use super::*;
 
@@ -28,8 +30,8 @@ impl<T: Lane> SqrtEskf<T> {
     /// Sets the orientation `q` (sensor to earth, ENU; normalised here) as
     /// [`set_quat`](OrientationFilter::set_quat) does, and its uncertainty: the attitude error
     /// becomes `sigma`² · I (rad², per earth axis, every lane its own `sigma`; the model error
-    /// seen so far is forgotten), uncorrelated with the bias error, whose covariance is kept. [`attitude_covariance`](Self::attitude_covariance)
-    /// reads `sigma`² back on the diagonal.
+    /// seen so far is forgotten), uncorrelated with the bias error, whose covariance is kept.
+    /// [`attitude_covariance`](Self::attitude_covariance) reads `sigma`² back on the diagonal.
     ///
     /// Refused, with nothing changed: a non-finite `q` or one whose norm is outside
     /// [0.5, 2] (not an orientation that was meant), and a `sigma` that is NaN, negative or
