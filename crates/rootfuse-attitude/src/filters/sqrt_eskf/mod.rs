@@ -1,153 +1,6 @@
-//! The flagship filter [`SqrtEskf`]: a square-root multiplicative error-state Kalman filter
-//! with decoupled inclination and heading, rest detection, quasi-inertial accelerometer
-//! low-pass, χ² gating and magnetic-disturbance rejection.
-//!
-//! # Structure (one state, 6D and 9D at once)
-//!
-//! The 6D orientation is `q6 = c ⊗ q_gyr`: `q_gyr` is pure strapdown integration of the
-//! bias-corrected gyroscope (the *quasi-inertial* frame `I`, never corrected), `c` the
-//! accumulated inclination correction (and whatever heading the bias correlation moves).
-//! The 9D orientation is `q9 = qz(δ) ⊗ q6`: the magnetometer only ever moves the scalar
-//! heading offset `δ` about earth-z, so a magnetic disturbance can neither tilt the estimate
-//! nor corrupt the gyro bias, and the 6D estimate is exactly the 9D one minus its magnetic
-//! heading correction (the split of Laidig & Seel 2023, "VQF: Highly accurate IMU
-//! orientation estimation with bias estimation and magnetic disturbance rejection",
-//! Information Fusion 91).
-//!
-//! # Error state and its square-root covariance
-//!
-//! The Kalman state is the 6-vector `x = [δθ, δb]`: `δθ` the attitude error of `q6` **in the
-//! (6D) earth frame** (`q_true = Exp(δθ) ⊗ q6`, the "global" error of Solà 2017,
-//! "Quaternion kinematics for the error-state Kalman filter", §7) and `δb = b_true − b̂` the
-//! gyro-bias error in the sensor frame. The earth-frame error is chosen because it makes the
-//! inclination/heading split exact: gravity observes `δθ_x, δθ_y` only, and the
-//! error dynamics `δθ̇ = −R(q6)·δb` have an identity attitude block (no `[ω]×` term),
-//! so the transition matrix is `F = [[I, −R·dt], [0, I]]`.
-//!
-//! The covariance is carried as an upper-triangular factor `P = S·Sᵀ` (`S` 6×6). The
-//! transition is block upper triangular, so `F·S` is upper triangular again and only its
-//! attitude–bias block changes; the time update then folds the diagonal process noise in by
-//! Householder reflections from the right that each mix one column of `S` with the noise
-//! columns that are non-zero in its row (the square-root time update of Kaminski, Bryson &
-//! Schmidt 1971 restricted to what changed; Bierman 1977, "Factorization Methods for
-//! Discrete Sequential Estimation", ch. V), so `P` never has to be formed. Measurements are
-//! processed as sequential scalar updates by Carlson's triangular square-root form (Carlson
-//! 1973; Bierman 1977, ch. V): with `f = Sᵀh` and `α_j = r + Σ_{k≤j} f_k²`,
-//! `S ← S·W`, `W` upper triangular (`W_jj = √(α_{j−1}/α_j)`,
-//! `W_ij = −f_i·f_j/√(α_{j−1}·α_j)`), `K = S·f/α_n` — Potter's form gives the same `P` and
-//! `K` but fills the factor, which would cost a full re-triangularisation per time update.
-//! Both steps are orthogonal transformations of, or products with, the factor, so
-//! `P = S·Sᵀ` is symmetric and positive semidefinite by construction in f32 as well as f64
-//! (Thornton 1976 compares these forms).
-//! After each update the error is injected into `c` (`c ← Exp(δθ̂) ⊗ c`) and `b̂`, and reset to
-//! zero (Solà 2017, §7.2; the reset Jacobian `I − [δθ̂/2]×` is taken as identity, its effect
-//! being second order for the small corrections applied per sample).
-//!
-//! # Accelerometer: low-pass in the quasi-inertial frame, lag-aware measurement, χ² gate
-//!
-//! As in VQF, the specific force is rotated into the `I` frame (`q_gyr·a`) and low-passed
-//! there (time constant `tau_acc`): in a frame that does not rotate with the body, linear
-//! accelerations of bounded velocity average out while gravity stays put, so fast
-//! translation cannot tilt the estimate. The low-pass is two equal first-order stages of
-//! `τ/2` each (critically damped second order, like VQF's second-order Butterworth it falls
-//! at −40 dB/decade, but its gain `1 − exp(−dt/(τ/2))` is exact for any `dt`); its mean
-//! delay is still `τ`, which is all the lag model below uses. On BROAD the second stage
-//! lowered the fast-translation trial's error (16: 0.78° → 0.74° 9D at the old tuning). The filtered vector is brought to the earth
-//! frame by `c`; the rotation vector `ε` that turns it onto up is the measurement of the
-//! horizontal components of `δθ`. Because the low-pass averages the past, `ε` lags: a bias
-//! error makes `I` drift, and an exponential average of that drift equals
-//! `δθ + τ·R̄·δb` with `R̄` the same low-pass of the sensor-to-earth rotation (derivation in
-//! the code). This is put into `H`, so the bias is learned from inclination corrections
-//! consistently rather than fighting the low-pass lag. The low-passed measurement noise is
-//! correlated over `τ`; it is modelled as a continuous-time density (`r = acc_noise²/dt`),
-//! which keeps the filter's time constants independent of the sample rate (and of per-sample
-//! `dt`). A scalar innovation beyond `acc_gate` standard deviations is rejected (χ² test with
-//! one degree of freedom); rejections lasting longer than `acc_reject_time` mean the model is
-//! wrong (wrong start, long acceleration), so the inclination covariance is re-inflated and
-//! the next measurement is accepted (re-acquisition).
-//!
-//! # Spikes: corrupted accelerometer samples within the screening limit
-//!
-//! The screening refuses a specific force beyond `max_acc`; below it, a corrupted sample (a
-//! bit error, a glitch) would still enter the low-pass, and at 286 Hz with `τ` = 2 s one
-//! sample of 1000 m/s² moves the first stage by 3.5 m/s², a tilt of the low-passed gravity by
-//! degrees for seconds (before the limit and this gate, one `ax = 1e39` on BROAD 02 took the
-//! RMSE from 1.25° to 94°). A sample whose specific force deviates from the
-//! low-passed one (the gravity estimate, compared in the sensor frame) by more than
-//! `acc_spike` (default 300 m/s², beyond anything a ±16 g accelerometer reports) is taken as
-//! corrupted: it is gated (counted, flag 16) and enters neither the low-passes, nor the
-//! rest detector, nor the bias-step detector, nor a correction. Real motion never reaches it
-//! (the largest deviation in the 14 BROAD trials is about 170 m/s², on the tapping trial at
-//! the sensor's ±16 g saturation), so clean data runs bit for bit as before.
-//!
-//! # Rest detection and gyro bias
-//!
-//! Rest is declared when, for at least `rest_time`, the gyro and accelerometer stay within
-//! `rest_gyr` / `rest_acc` of their own low-pass (time constant `rest_tau`) — the deviation
-//! test of VQF, plus the bias-corrected low-passed rate itself below `rest_gyr` (a slow
-//! constant-rate turn has a small deviation too). At rest the low-passed gyro is a direct, strong measurement of the bias
-//! (`H = [0, I]`) with noise density `rest_noise` = 4e-4 rad/s·√s: a few times the white
-//! noise density of a MEMS gyro (BROAD's: 1e-4 rad/s·√s, measured at rest), the margin
-//! covering the correlation the low-pass adds. After the initial rest of a recording the
-//! bias is then known to about 0.005°/s, which is what keeps the 6D heading of BROAD 29
-//! from drifting (a ten times weaker rest measurement costs 0.5° there); in motion the bias is learned only weakly through the lag-aware
-//! accelerometer measurement above and the `−R·dt` coupling in `F`. Heading-axis bias
-//! is therefore learned in motion only as the sensor rotates, as gravity allows.
-//!
-//! # Magnetometer: heading only, disturbance detection and re-acquisition
-//!
-//! The heading offset `δ` is a scalar Kalman filter (trivially square-root) with random-walk
-//! density `heading_walk` and measurement noise density `mag_noise`. Its variance also grows
-//! with what the 6D heading variance gains per step (gyro noise, earth-vertical bias
-//! uncertainty) and by `(heading_rate_noise·|ω|)²·dt`: gyro scale-factor and misalignment
-//! errors make the 6D heading drift in proportion to the rotation, and the offset has to
-//! absorb that drift (without this term BROAD 29 9D rises from 2.0° to 2.7°: after a
-//! disturbance the magnetometer is trusted too little to pull the heading back). The field norm and dip
-//! (angle below the horizontal in the 6D earth frame, independent of heading) are compared
-//! with a learned reference; outside `mag_norm_th` (relative) or `mag_dip_th` the sample is
-//! rejected. A candidate field is tracked all the time; when rejection has lasted
-//! `mag_reject_time`, or the candidate has been stable for `mag_new_time`, the candidate
-//! becomes the reference (a new homogeneous field, e.g. another room).
-//!
-//! # Gyro-bias steps and the start without accelerometer
-//!
-//! A bias step makes the strapdown frame drift, and the inclination corrections then chase a
-//! persistent, one-signed innovation. The running mean of the two horizontal innovations
-//! (time constant `bias_step_window`) is compared with the `acc_noise²/(2·window)` per axis
-//! that white innovations leave in it; beyond `bias_step_gate` standard deviations the next
-//! time update re-inflates the bias covariance by `init_bias_std`, so the lag-aware
-//! measurement can learn the new bias faster than at the random-walk rate. It is **off by
-//! default** (`bias_step_gate = 0`): on a simulated 0.02 rad/s step, gate 6 detects it and the
-//! bias error settles below 0.002 rad/s 26 s after the step (not within 30 s without), yet
-//! the attitude after the step is worse (9D 8.9° against 4.9°) as the re-inflated bias swings;
-//! on the BROAD trials gate 6 fires in real motion and raises the 9D mean from 2.20° to 2.70°
-//! (gate 5: 15.9°, the re-inflated bias absorbs motion), and gate 8 never fires on either.
-//!
-//! Before the first usable accelerometer sample the gyroscope is integrated (flags:
-//! accelerometer skipped); that sample sets the inclination and keeps the integrated heading.
-//!
-//! # Status on the 14 shared BROAD trials (defaults, RMSE in degrees, f64 = f32 to 0.013°)
-//!
-//! | | 9D total | 6D total | inclination |
-//! |---|---|---|---|
-//! | ours, mean | 2.20 (better than VQF on 9 of 14) | 2.40 (7 of 14) | 0.794 (4 of 14) |
-//! | VQF online, mean | 2.21 | 2.41 | 0.724 |
-//! | ours offline (`smooth::forward_backward`) | 1.72 | 2.35 | 0.62 |
-//! | VQF offline | 1.96 | | 0.53 |
-//!
-//! A tie with VQF online, not the lead the old four trials suggested (the defaults were tuned
-//! on 02, 07, 16, 29). Leave-one-trial-out cross-validation over 384 candidate sets
-//! (`examples/flagship_cv.rs`, `docs/accuracy.md`) found none better out of sample, so the
-//! defaults stay. Inclination loses on the translation and vibration trials (10, 12, 27:
-//! 0.49 / 0.43 / 0.60 against 0.30 / 0.25 / 0.37) because `tau_acc` = 2 s is short for them;
-//! about 4 s brings them below VQF but costs the fast rotations with breaks (08: 1.60 → 2.1).
-//!
-//! # Lanes
-//!
-//! Every branch is computed in every lane and selected by mask; the shared [`Screened`]
-//! input screening skips whole samples (bad gyro or `dt`) or single corrections (bad
-//! accelerometer or magnetometer) per lane, so NaN, ∞, zero vectors or a bad `dt` in one lane
-//! never touch the others. Nothing is allocated.
+//! The flagship filter [`SqrtEskf`], a square-root multiplicative error-state Kalman filter.
+//! What it is, its units, parameters and methods: the rustdoc of [`SqrtEskf`]. The derivation,
+//! with the paper references: docs/methods.md, section "`sqrt-eskf` (the flagship)".
 
 // The factor kernels index several arrays with the same row/column numbers (as the
 // formulas are written); iterator chains would hide that.
@@ -535,11 +388,118 @@ impl<T: Lane> State<T> {
     }
 }
 
-/// Square-root multiplicative error-state Kalman filter (see the module documentation).
+/// The flagship orientation filter (registry name `sqrt-eskf`, alias `flagship`): a
+/// square-root multiplicative error-state Kalman filter with decoupled inclination and
+/// heading, rest detection and gyro-bias estimation, an accelerometer low-pass in a
+/// quasi-inertial frame, χ² gating of the inclination measurement and magnetic-disturbance
+/// rejection. It runs in 6D (gyroscope and accelerometer) or 9D (plus magnetometer), in `f32`,
+/// `f64` or SIMD lanes (each lane an independent channel with the same bits as alone), and
+/// allocates nothing.
 ///
-/// State: the strapdown quaternion (quasi-inertial frame), the earth-frame correction `c`
-/// (`q6 = c ⊗ q_strapdown`), the heading offset `δ` (rad, `q9 = qz(δ) ⊗ q6`), the bias `b̂`
-/// (rad/s, sensor frame) and the covariance factor `S` of `[δθ (earth frame, rad), δb (rad/s)]`.
+/// # Structure
+///
+/// - `q6 = c ⊗ q_gyr`: `q_gyr` integrates the bias-corrected gyroscope into a quasi-inertial
+///   frame and is never corrected; `c` accumulates the Kalman attitude corrections.
+/// - `q9 = qz(δ) ⊗ q6`: the magnetometer only moves the scalar heading offset `δ` about
+///   earth-up, so a disturbed field can neither tilt the estimate nor corrupt the gyro bias
+///   (the split of VQF, Laidig & Seel 2023).
+/// - The Kalman error state is `[δθ, δb]`: `δθ` the attitude error of `q6` in the earth frame
+///   (rad, `q_true = Exp(δθ) ⊗ q6`), `δb` the gyro-bias error in the sensor frame (rad/s).
+///   Its covariance is carried as an upper-triangular factor, `P = S·Sᵀ` (`S` 6×6), and is
+///   symmetric positive semidefinite by construction, in `f32` as in `f64`. The heading
+///   offset `δ` has a scalar variance of its own.
+///
+/// The derivation (square-root time update, Carlson's measurement update, the lag-aware
+/// inclination measurement, the χ² gate, rest detection, magnetic disturbance, heading
+/// offset, model error) is in docs/methods.md, section "`sqrt-eskf` (the flagship)";
+/// measured accuracy in docs/accuracy.md.
+///
+/// # Units and frames
+///
+/// Inputs ([`crate::ImuSample`]), all in the sensor frame:
+///
+/// - gyroscope in rad/s;
+/// - accelerometer in m/s²: the corrections use its direction only, but the thresholds
+///   `rest_acc`, `acc_spike` and `max_acc` are in m/s²;
+/// - magnetometer in any unit (9D only; its norm is compared relative to a learned reference,
+///   only `max_mag` is absolute); a 6D sample carries none;
+/// - `dt`, seconds since the previous sample (may vary from sample to sample).
+///
+/// Outputs:
+///
+/// - orientation: unit quaternion `[w, x, y, z]` rotating **sensor to earth**, earth ENU
+///   (x east, y north, z up);
+/// - gyro bias: rad/s, sensor frame (the estimate subtracted from the gyroscope);
+/// - attitude covariance: rad², of the earth-frame error `δθ` of the orientation, earth axes:
+///   the upper-left 2×2 block is the inclination, `[2][2]` the heading variance (in 9D that of
+///   `δ`, its correlation with the inclination not tracked).
+///
+/// Unusable input (NaN, ∞, a zero vector, a bad `dt`, a value beyond the screening limits) skips
+/// the sample or the one correction in that lane only, and is counted.
+///
+/// # Parameters that matter most
+///
+/// All in [`SqrtEskfParams`] (each field's doc gives its unit, default and range):
+///
+/// - `dof`: [`crate::Dof::Six`] ignores the magnetometer (the heading then drifts with the
+///   gyroscope), [`crate::Dof::Nine`] (default) uses it;
+/// - `tau_acc` (2 s): time constant of the accelerometer low-pass; longer rides out longer
+///   accelerations (translation, vibration) but corrects the inclination more slowly;
+/// - `gyr_noise` (0.005 rad/√s) against `acc_noise` (0.003 rad·√s): how far the gyroscope is
+///   trusted over gravity; `acc_gate` (6 standard deviations) rejects outlying inclination
+///   innovations;
+/// - `rest_gyr` (0.035 rad/s), `rest_acc` (0.5 m/s²), `rest_time` (1.5 s): rest detection,
+///   where the gyro bias is measured directly (`rest_noise`); `bias_walk` is how fast the
+///   bias is assumed to wander;
+/// - `mag_noise` (0.13 rad·√s), `mag_norm_th` (5 %), `mag_dip_th` (0.1 rad): how fast the
+///   magnetometer pulls the heading, and when a field counts as disturbed;
+/// - the screening limits `max_dt`, `max_gyr`, `max_acc`, `max_mag` that every filter shares.
+///
+/// `try_new` validates the parameters, `new` does not; `with_lane_params` gives each lane its
+/// own set.
+///
+/// # Methods
+///
+/// - `update(sample, dt)` ([`crate::OrientationFilter`]) processes one sample;
+/// - `quat` is the estimate (`q9` in 9D, `q6` in 6D); `quat6` and `quat9` give both, and
+///   `heading_offset` gives `δ`;
+/// - `bias` is the gyro-bias estimate;
+/// - `attitude_covariance` is the 3×3 attitude covariance above (its inclination block includes
+///   a model error term, `model_error_scale` times the running mean square of the inclination
+///   innovation); `covariance_factor` is `S` and `covariance` is `P = S·Sᵀ` of `[δθ, δb]`;
+/// - `reset` returns to the state of a new filter with the same parameters;
+/// - `set_quat(q, sigma)` and `set_bias(b, sigma)` set the orientation or the bias, with its
+///   standard deviation when `sigma` is given (out-of-range values are refused with a
+///   [`crate::StateError`], nothing changed); `set_heading` turns about earth-up;
+/// - `flags` tells what happened to the last sample ([`crate::filters::SampleFlags`]: skips,
+///   gating, rest, magnetic disturbance), `rejections` counts skips by reason
+///   ([`crate::filters::Rejections`]); `rest_detected` and `magnetic_disturbance` are the
+///   detector states; `params` returns the parameters.
+///
+/// # Example
+///
+/// 6D in `f64`: a sensor lying still, tilted, with a gyroscope bias.
+///
+/// ```
+/// use rootfuse_attitude::prelude::*;
+///
+/// let params = SqrtEskfParams { dof: Dof::Six, ..Default::default() };
+/// let mut filter = SqrtEskf::<f64>::try_new(&params).expect("valid parameters");
+/// let acc = Vec3::new(0.0, 3.0, 9.3); // m/s², sensor frame: gravity of a tilted sensor
+/// let gyr = Vec3::new(0.01, 0.0, 0.0); // rad/s: at rest, so all of it is bias
+/// let sample = ImuSample::six_d(gyr, acc);
+/// for _ in 0..2000 {
+///     filter.update(&sample, 0.01); // 20 s at 100 Hz
+/// }
+/// // At rest the bias is measured directly...
+/// assert!((filter.bias().x - 0.01).abs() < 1e-3);
+/// // ...and the orientation (sensor to earth) turns the measured gravity onto earth-up.
+/// let up = filter.quat().rotate(acc);
+/// assert!(up.x.hypot(up.y) < 0.01 * up.norm());
+///
+/// filter.reset(); // a new filter with the same parameters
+/// assert_eq!(filter.bias(), Vec3::zero());
+/// ```
 #[derive(Clone, Debug)]
 pub struct SqrtEskf<T: Lane> {
     state: State<T>,

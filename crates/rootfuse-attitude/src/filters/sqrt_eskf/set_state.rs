@@ -1,5 +1,7 @@
 //! The flagship's state set from outside: back to a new filter, and the orientation or the
 //! bias set with (or without) its uncertainty.
+//! The state itself (`q6 = c ⊗ q_gyr`, `q9 = qz(δ) ⊗ q6`, `P = S·Sᵀ`) is described on
+//! [`SqrtEskf`].
 
 use super::*;
 use crate::filters::{StateError, checked_bias, checked_quat, checked_sigma};

@@ -1,5 +1,6 @@
 //! The flagship's per-sample steps (time update, start, rest, inclination, bias, heading) and
 //! its [`OrientationFilter`] implementation; the state and the public API are in the parent.
+//! The design is documented on [`SqrtEskf`], the derivation in docs/methods.md.
 
 use super::*;
 use crate::filters::StateError;
@@ -309,7 +310,8 @@ impl<T: Lane> SqrtEskf<T> {
         st.bias_step = step;
     }
 
-    /// Per lane: the last sample detected a gyro-bias step (see [`SqrtEskfParams::bias_step_gate`]).
+    /// Per lane: the last sample detected a gyro-bias step
+    /// (see [`SqrtEskfParams::bias_step_gate`]).
     pub fn bias_step_detected(&self) -> T::Mask {
         self.state.bias_step
     }
