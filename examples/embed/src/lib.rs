@@ -40,8 +40,23 @@ impl Attitude {
 
     /// Standard deviation of the attitude error per earth axis (east, north, up), rad.
     pub fn attitude_std(&self) -> [f32; 3] {
-        let p = self.filter.attitude_covariance();
-        [p.m[0][0], p.m[1][1], p.m[2][2]].map(Lane::sqrt)
+        match self.filter.attitude_covariance() {
+            Some(p) => [p.m[0][0], p.m[1][1], p.m[2][2]].map(Lane::sqrt),
+            None => unreachable!("the flagship carries an attitude covariance"),
+        }
+    }
+
+    /// Starts from a known orientation (`[w, x, y, z]`, sensor to earth) known to within
+    /// `sigma` rad per axis, e.g. from a docking station; refused (nothing changed) for a
+    /// non-finite or non-unit quaternion or a `sigma` outside [0, π].
+    pub fn set_orientation(&mut self, q: [f32; 4], sigma: f32) -> Result<(), StateError> {
+        self.filter
+            .set_quat(Quat::new(q[0], q[1], q[2], q[3]), Some(sigma))
+    }
+
+    /// Back to a new filter's state, e.g. after the sensor was re-mounted.
+    pub fn reset(&mut self) {
+        self.filter.reset();
     }
 }
 
