@@ -660,7 +660,7 @@ impl Filter {
         let sigma = sigma.map(|s| self.sigma(s, "sigma")).transpose()?;
         let mut state = self.lock()?;
         let r = with_state!(&mut *state, f => {
-            f.set_quat(rootfuse_attitude::Quat::from_f64(q), sigma.map(|s| Lane::from_f64(s)))
+            f.set_quat(rootfuse_attitude::Quat::from_f64(q), sigma.map(Lane::from_f64))
         });
         // A quaternion without a sigma is taken by every filter.
         self.state_result(r, sigma.is_some()).map(|_| ())
@@ -697,7 +697,7 @@ impl Filter {
         let sigma = sigma.map(|s| self.sigma(s, "sigma")).transpose()?;
         let mut state = self.lock()?;
         let r = with_state!(&mut *state, f => {
-            f.set_bias(Vec3::from_f64(b), sigma.map(|s| Lane::from_f64(s)))
+            f.set_bias(Vec3::from_f64(b), sigma.map(Lane::from_f64))
         });
         self.state_result(r, sigma.is_some())
     }

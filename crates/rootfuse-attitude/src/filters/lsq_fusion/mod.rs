@@ -133,19 +133,49 @@ pub struct LsqFusion<T: Lane> {
     mag_drift_weight: T,
     limits: ScreenLimits,
     rejections: Rejections<T>,
-    /// The stateful stages as built, for `reset`.
-    initial: Stages<T>,
+    /// Per-lane Hampel threshold and low-pass factor of the pre-processing, for `reset`.
+    hampel_threshold: T,
+    smooth_factor: T,
     params: LsqFusionParams,
 }
 
 /// The stages of [`LsqFusion`] that carry state.
-#[derive(Clone, Debug)]
 struct Stages<T: Lane> {
     hampel: [Hampel<T, 5>; 3],
     smooth: [LowPass<T>; 3],
     denoise: [PolyDenoiser<T, 3>; 3],
     drift: DriftEstimator<T>,
     fusion: Potter<T, 4>,
+}
+
+impl<T: Lane> Stages<T> {
+    /// The stages as a new filter has them: per-lane pre-processing coefficients, the
+    /// denoiser and drift estimator from the first lane's (shared) parameters.
+    fn new(hampel_threshold: T, smooth_factor: T, p: &LsqFusionParams) -> Self {
+        let fusion = Potter::with_isotropic_prior(
+            &Vector::from_column([T::one(), T::zero(), T::zero(), T::zero()]),
+            T::from_f64(FUSION_PRIOR),
+            RlsConfig::new(1.0),
+        );
+        Self {
+            hampel: core::array::from_fn(|_| Hampel::with_threshold(hampel_threshold)),
+            smooth: core::array::from_fn(|_| LowPass::with_factor(smooth_factor)),
+            denoise: core::array::from_fn(|_| PolyDenoiser::new(p.denoise_tau, p.gyr_noise)),
+            drift: DriftEstimator::new(&DriftConfig {
+                block: p.drift_block,
+                memory: p.drift_memory,
+                max: p.drift_max,
+                nine_d: p.dof.uses_magnetometer(),
+                gate: 0.1,
+                noise: p.drift_noise,
+                scale: p.gyr_scale,
+            }),
+            // Unreachable: construction fails only for λ ∉ (0, 1], invalid bounds, a
+            // non-finite x₀ or P₀ not PD; here λ = 1, no bounds, x₀ = [1, 0, 0, 0],
+            // P₀ = FUSION_PRIOR·I = I.
+            fusion: fusion.expect("unreachable: constant, valid prior"),
+        }
+    }
 }
 
 /// Gravity the accelerometer weight compares the specific-force norm with, m/s².
@@ -163,40 +193,22 @@ impl<T: Lane> LsqFusion<T> {
     pub fn with_lane_params(lanes: &LaneParams<'_, LsqFusionParams, T>) -> Self {
         let p = lanes.first();
         let nine = p.dof.uses_magnetometer();
-        let fusion = Potter::with_isotropic_prior(
-            &Vector::from_column([T::one(), T::zero(), T::zero(), T::zero()]),
-            T::from_f64(FUSION_PRIOR),
-            RlsConfig::new(1.0),
-        );
         let positive = |v: f64, default: f64| if v > 0.0 && v.is_finite() { v } else { default };
-        let initial = Stages {
-            hampel: core::array::from_fn(|_| {
-                Hampel::with_threshold(lanes.coef(|p| hampel_threshold(p.hampel_k)))
-            }),
-            smooth: core::array::from_fn(|_| {
-                LowPass::with_factor(lanes.coef(|p| low_pass_factor(p.smooth)))
-            }),
-            denoise: core::array::from_fn(|_| PolyDenoiser::new(p.denoise_tau, p.gyr_noise)),
-            drift: DriftEstimator::new(&DriftConfig {
-                block: p.drift_block,
-                memory: p.drift_memory,
-                max: p.drift_max,
-                nine_d: nine,
-                gate: 0.1,
-                noise: p.drift_noise,
-                scale: p.gyr_scale,
-            }),
-            // Unreachable: construction fails only for λ ∉ (0, 1], invalid bounds, a
-            // non-finite x₀ or P₀ not PD; here λ = 1, no bounds, x₀ = [1, 0, 0, 0],
-            // P₀ = FUSION_PRIOR·I = I.
-            fusion: fusion.expect("unreachable: constant, valid prior"),
-        };
+        let hampel_threshold = lanes.coef(|p| hampel_threshold(p.hampel_k));
+        let smooth_factor = lanes.coef(|p| low_pass_factor(p.smooth));
+        let Stages {
+            hampel,
+            smooth,
+            denoise,
+            drift,
+            fusion,
+        } = Stages::new(hampel_threshold, smooth_factor, p);
         Self {
-            hampel: initial.hampel.clone(),
-            smooth: initial.smooth.clone(),
-            denoise: initial.denoise.clone(),
-            drift: initial.drift.clone(),
-            fusion: initial.fusion.clone(),
+            hampel,
+            smooth,
+            denoise,
+            drift,
+            fusion,
             q: Quat::identity(),
             fusion_gain: LowPassGain::new(lanes.coef(|p| positive(p.fusion_tau, 3.0))),
             acc_weight: lanes.coef(|p| {
@@ -211,7 +223,8 @@ impl<T: Lane> LsqFusion<T> {
             }),
             limits: p.screen_limits(),
             rejections: Rejections::default(),
-            initial,
+            hampel_threshold,
+            smooth_factor,
             params: p.clone(),
         }
     }
@@ -315,7 +328,7 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
             denoise,
             drift,
             fusion,
-        } = self.initial.clone();
+        } = Stages::new(self.hampel_threshold, self.smooth_factor, &self.params);
         (self.hampel, self.smooth, self.denoise) = (hampel, smooth, denoise);
         (self.drift, self.fusion) = (drift, fusion);
         self.q = Quat::identity();
