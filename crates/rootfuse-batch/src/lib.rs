@@ -57,25 +57,26 @@
 //!
 //! | filter | `f32x8` | `f64x4` | `X2<f32x8>` |
 //! |---|---|---|---|
-//! | `gyro` | 152 | 248 | 148 |
-//! | `complementary` | 180 | 304 | 174 |
-//! | `mahony` | 188 | 320 | 182 |
-//! | `madgwick` | 176 | 296 | 170 |
-//! | `ekf` | 388 | 720 | 382 |
-//! | `sqrt-eskf` | 684 | 1312 | 678 |
-//! | `complementary-reconstruction` | 332 | 608 | 324 |
-//! | `heading-pipeline` | 868 | 1536 | 838 |
-//! | `lsq-fusion` | 1272 | 2256 | 1238 |
-//! | `ecf-ekf` | 1748 | 3368 | 1724 |
-//! | any filter as `AnyFilter<L>` | 1748 | | |
+//! | `gyro` | 160 | 264 | 152 |
+//! | `complementary` | 184 | 312 | 176 |
+//! | `mahony` | 196 | 336 | 186 |
+//! | `madgwick` | 180 | 304 | 172 |
+//! | `ekf` | 404 | 752 | 392 |
+//! | `sqrt-eskf` | 716 | 1376 | 694 |
+//! | `complementary-reconstruction` | 340 | 624 | 328 |
+//! | `heading-pipeline` | 884 | 1568 | 848 |
+//! | `lsq-fusion` | 1296 | 2304 | 1254 |
+//! | `ecf-ekf` | 1764 | 3400 | 1734 |
+//! | any filter as `AnyFilter<L>` | 1764 | | |
 //!
 //! (The workspace test `state_bytes_are_the_filters_own` checks this table.) So a run-time
-//! typed Mahony batch would cost 1748 B per channel (the size of the largest variant,
-//! `ecf-ekf`); typed, it costs 188. Of those, 48 B are the six `u64` rejection counters
+//! typed Mahony batch would cost 1764 B per channel (the size of the largest variant,
+//! `ecf-ekf`); typed, it costs 196. Of those, 48 B are the six `u64` rejection counters
 //! (exact for any recording length, where an `f32` counter would stop at 2²⁴), 28 B the last
 //! sample's flags (seven masks), and about 56 B the chunk's masking state and padding sample,
 //! amortised over the lanes. Parameters are per-lane coefficients (so channels with
-//! different parameters share a chunk): the flagship's 24 cost 96 B per channel in `f32x8`.
+//! different parameters share a chunk): the flagship's 24 cost 96 B per channel in `f32x8`;
+//! the parameter set as given (`params()`, one per chunk) adds its size divided by the lanes.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and
 //! array-of-structs input ([`Batch::run_channels`], [`run_recordings`]) is packed into lanes
