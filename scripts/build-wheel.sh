@@ -8,7 +8,7 @@
 # so a native build copied to an older CPU fails with ImportError, not an illegal instruction.
 # It is linked by zig (the `ziglang` package) against glibc 2.17 and tagged manylinux2014
 # (`manylinux_2_17_x86_64`): it installs on any x86-64 Linux since CentOS 7, not only on
-# systems as new as the build machine (a plain build was tagged manylinux_2_35).
+# systems as new as the build machine (a plain build here is tagged manylinux_2_35).
 # Output: target/wheels/rootfuse-*-cp39-abi3-manylinux_2_17_x86_64*.whl (one wheel for every
 # CPython >= 3.9).
 set -euo pipefail

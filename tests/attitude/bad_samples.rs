@@ -380,9 +380,10 @@ fn flagship_gates_accelerometer_spikes_within_the_limit() {
     check(&specs, &cases);
 }
 
-/// The example: `ax = 1e39` at row 20000 of BROAD trial 02 took the flagship's total
-/// RMSE from 1.247° to 94.2°. Now the sample is beyond `max_acc`: only its accelerometer
-/// correction is skipped (counted, flag 4), and the RMSE does not move; a spike of 500 m/s²,
+/// The example: `ax = 1e39` at row 20000 of BROAD trial 02, which, taken as a
+/// measurement, moves the flagship's total RMSE from 1.247° to 94.2°. The sample is beyond
+/// `max_acc`: only its accelerometer correction is skipped (counted, flag 4), and the RMSE
+/// does not move; a spike of 500 m/s²,
 /// within the limit, is gated by the flagship's `acc_spike` instead (counted as gated).
 #[test]
 #[cfg_attr(

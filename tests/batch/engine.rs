@@ -532,7 +532,7 @@ fn interleaved_lanes_equal_scalar_runs() {
 }
 
 /// Each filter's batch costs its own state, not the largest filter's, and the table of bytes
-/// per channel in the `rootfuse-batch` crate docs is what the filters cost now (print it with
+/// per channel in the `rootfuse-batch` crate docs is what the filters cost (print it with
 /// `cargo test state_bytes -- --nocapture`).
 #[test]
 fn state_bytes_are_the_filters_own() {

@@ -130,7 +130,7 @@ impl<T: Lane> LowPass<T> {
     }
     /// The factor `a = 1 − exp(−dt/τ)` of a time constant `tau` (s) at sample interval `dt`
     /// (s): the exact discretisation ([`lowpass_gain`](crate::blocks::lowpass_gain)), where
-    /// `dt/(τ + dt)` was first order only. `tau = 0` is no low-pass (`a = 1`).
+    /// `dt/(τ + dt)` is first order only. `tau = 0` is no low-pass (`a = 1`).
     pub fn from_time_constant(tau: f64, dt: f64) -> Self {
         Self::new(crate::blocks::lowpass_gain(dt, tau))
     }

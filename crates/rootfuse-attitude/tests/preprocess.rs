@@ -28,7 +28,7 @@ fn low_pass_step_response_is_the_closed_form() {
         assert!((y - exact).abs() < 1e-14, "n = {n}: {y} vs {exact}");
     }
     let lp = LowPass::<f64>::from_time_constant(0.1, 0.01);
-    // The exact discretisation 1 − exp(−dt/τ) (it was the first-order dt/(τ + dt)).
+    // The exact discretisation 1 − exp(−dt/τ), not the first-order dt/(τ + dt).
     assert!((lp.update_copy_a() + (-0.1f64).exp_m1()).abs() < 1e-15);
 }
 

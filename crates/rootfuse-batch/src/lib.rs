@@ -117,26 +117,24 @@
 //! `rootfuse throughput --filter mahony --dof 6 --sweep --plot docs/throughput-channels.png`
 //! (Mahony 6D in `X2<f32x8>` on one core, about 0.5 s per point, best of 3; the dashed lines
 //! mark where the channels' filter state fills L1d and L2, read from
-//! `/sys/devices/system/cpu/cpu0/cache`). Two orders:
+//! `/sys/devices/system/cpu/cpu0/cache`); the measured rates are in `docs/performance.md` in
+//! the repository. Two orders:
 //! - **Chunk by chunk** (offline, whole recordings; `throughput::Order::ChunkMajor`): each chunk runs
 //!   all its samples before the next, its state stays in registers, and the channel count
-//!   does not matter: flat at about 2.1e8 channel-updates/s from 64 channels to 1e6. Below
-//!   16 channels the one chunk is partly empty (8 channels fill half of a 16-lane `X2`
-//!   chunk, so half the work is padding: 1.0e8).
+//!   does not matter: the rate is flat from 64 channels up. Below 16 channels the one chunk
+//!   is partly empty (8 channels fill half of a 16-lane `X2` chunk, so half the work is
+//!   padding).
 //! - **Tick by tick** (real-time streaming of many sensors, one sample for every channel, then
 //!   the next; `throughput::Order::Tick`): each chunk's filter state (94 B per channel for Mahony in `X2<f32x8>`,
 //!   40 B of it the rejection counters) is loaded and stored once per sample. The input pool is the same
-//!   1.3 MB either way. Measured (one sweep): within L1d (48 KiB on this machine, about 500
-//!   channels) a tick costs 7–12 % more than chunk by chunk (the loads, stores and loop per
-//!   sample); within L2 (2 MiB, about 22 000 channels) 15–25 %, the hardware prefetcher
-//!   streaming the state in its sequential order; past L2 the state and the input pool
-//!   compete for L2 and the state comes from L3 (260 MiB, shared, so even the 92 MiB of 1e6
-//!   Mahony channels fit): −23 % at 262 144 channels, and at 1e6 channels a tick runs at 0.4
-//!   of chunk by chunk (8.5e7/s), the cost of moving the state in and out every sample.
-//!   Beyond L3 it would be bound by memory bandwidth. Streaming applications should therefore
-//!   feed blocks of several samples per channel ([`Batch::run_soa`] and
-//!   [`Batch::run_channels`] take any number of steps per call) to get the chunk-by-chunk
-//!   rate.
+//!   1.3 MB either way. Within L1d a tick costs a little more than chunk by chunk (the loads,
+//!   stores and loop per sample); within L2 more, the hardware prefetcher streaming the state
+//!   in its sequential order; past L2 the state and the input pool compete for L2 and the
+//!   state comes from L3: the cost of moving the state in and out every sample grows with
+//!   the channel count. Beyond L3 it would be bound by memory bandwidth. Streaming
+//!   applications should therefore feed blocks of several samples per channel
+//!   ([`Batch::run_soa`] and [`Batch::run_channels`] take any number of steps per call) to
+//!   get the chunk-by-chunk rate.
 //!
 //! [`Lane::LANES`]: rootfuse_lane::Lane::LANES
 //! [`FilterSpec`]: rootfuse_attitude::registry::FilterSpec

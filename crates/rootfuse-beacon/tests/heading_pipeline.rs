@@ -299,12 +299,12 @@ fn fusion_removes_offset_and_refuses_turns() {
 }
 
 /// The 10-minute walk in 6D (gyro heading, accumulated drift), seeds 0–9, beacons fused and
-/// beacon fixes on: the first row of the beacon table in docs/accuracy.md, which
-/// `cargo run --release --example seed003_walk` prints (measured: mean |final heading error|
-/// 57.4° MEMS only vs 0.40° with beacons, RMS 33.1° vs 0.81°, max position error 19.0 m vs
-/// 2.95 m, worst 3.62 m). Pinned at that table's rounding: beacons cut the mean final and RMS
-/// errors by at least 10×, mean final below 0.45°, mean RMS below 0.85°, mean max position
-/// error below 3.05 m and the worst below 3.65 m.
+/// beacon fixes on: the first row of the beacon table in docs/accuracy.md (MEMS only against
+/// with beacons), which `cargo run --release --example seed003_walk` prints. With beacons, at
+/// more digits than the table: mean |final heading error| 0.40°, RMS 0.81°, max position
+/// error 2.95 m, worst 3.62 m. Pinned at that table's rounding: beacons cut the mean final
+/// and RMS errors by at least 10×, mean final below 0.45°, mean RMS below 0.85°, mean max
+/// position error below 3.05 m and the worst below 3.65 m.
 #[test]
 fn walk_beacons_remove_accumulated_heading_error() {
     let (mut fin_m, mut fin_b, mut rms_m, mut rms_b) = (0.0, 0.0, 0.0, 0.0);

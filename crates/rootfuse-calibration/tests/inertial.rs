@@ -91,8 +91,8 @@ fn gyro_bias_is_the_rest_mean() {
 
 /// A turntable: 4 s of rest, then 30 s of a steady turn about the vertical. The gyroscope and
 /// the accelerometer are as steady as at rest; the rate (above any plausible bias) and the
-/// turning field tell the turn from rest, so the bias comes from the 4 s of rest (the turn
-/// used to be taken for rest and its whole rate written as the "bias").
+/// turning field tell the turn from rest, so the bias comes from the 4 s of rest (steadiness
+/// alone takes the turn for rest and writes its whole rate as the "bias").
 #[test]
 fn a_steady_turn_is_not_rest() {
     let z = Vec3::new(0.0, 0.0, 1.0);

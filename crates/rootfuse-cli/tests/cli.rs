@@ -428,7 +428,7 @@ fn simulated(dir: &Path, name: &str, seed: u64) -> PathBuf {
 }
 
 /// Two inputs with the same file name would write the same estimate: refused before any
-/// output is written (it used to overwrite the first estimate with exit code 0).
+/// output is written (never the first estimate overwritten with exit code 0).
 #[test]
 fn run_refuses_two_inputs_with_one_output_name() {
     let dir = temp_dir("dupname");
@@ -469,7 +469,7 @@ fn run_refuses_to_overwrite_an_input() {
 }
 
 /// A header-only file, a 6D file under `--dof 9` and an empty folder are one clear error each
-/// (they used to exit 0 with nothing said, or with "no input could be read").
+/// (not exit code 0 with nothing said, nor "no input could be read").
 #[test]
 fn run_refuses_files_it_cannot_use() {
     let dir = temp_dir("unusable");
@@ -702,7 +702,7 @@ fn run_removes_stale_temporary_files() {
 }
 
 /// SIGTERM while the estimates are written: the process exits 130, every final file is
-/// complete and no temporary file is left (it used to leave `<name>.tmp.<pid>` behind).
+/// complete and no temporary file (`<name>.tmp.<pid>`) is left behind.
 #[cfg(unix)]
 #[test]
 fn signal_during_writing_leaves_no_temporary_file() {
@@ -923,10 +923,10 @@ fn eval_align_never_hurts_on_broad() {
     }
 }
 
-/// `eval --align` on real data where it used to mislead: a y-up truth (BROAD 02 turned so
+/// `eval --align` on real data where a plain fit misleads: a y-up truth (BROAD 02 turned so
 /// that its y axis is up, as many motion-capture systems are) scores as the z-up truth, 6D
-/// and 9D; a still stretch (BROAD 27, rows 45319–46588: under 1° of rotation, which used to
-/// give a 147° earth offset) is refused with the rotation it has and the rotation it needs;
+/// and 9D; a still stretch (BROAD 27, rows 45319–46588: under 1° of rotation, where a plain
+/// fit gives a 147° earth offset) is refused with the rotation it has and the rotation it needs;
 /// five samples are scored with a warning.
 #[test]
 #[cfg_attr(
@@ -1030,8 +1030,8 @@ fn run_help_documents_gaps_and_signals() {
 }
 
 /// Whole-number parameters refuse fractions instead of rounding them, and `--dof` cannot
-/// silently beat a `--param dof` (both used to run: `dof=7` as 6D, `window=2.5` as 3,
-/// `--dof 9 --param dof=6` as 9D).
+/// silently beat a `--param dof` (none of `dof=7` as 6D, `window=2.5` as 3,
+/// `--dof 9 --param dof=6` as 9D runs).
 #[test]
 fn parameters_refuse_fractions_and_contradictions() {
     let dir = temp_dir("kinds");
@@ -1172,8 +1172,7 @@ fn max_dt_sets_the_gap_limit() {
 
 /// `calibrate gyro` on a turntable (a steady 0.5 rad/s turn, no rest) says why it found no
 /// rest phase: the blocks were steady but turning faster than a bias can be, and how long
-/// the longest still stretch was against the length needed (it used to say "0 rest
-/// phases" and stop).
+/// the longest still stretch was against the length needed (not just "0 rest phases").
 #[test]
 fn calibrate_gyro_says_why_there_is_no_rest() {
     use rootfuse_attitude::{Recording, Vec3};

@@ -49,8 +49,8 @@ fn run_6d(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (Option<i32>, String, String)
     run(&all)
 }
 
-/// `run good.parquet --format csv --out .` beside the user's own `good.csv` used to replace
-/// it silently. Now it is refused before anything is written; `--force` replaces it; a rerun
+/// `run good.parquet --format csv --out .` beside the user's own `good.csv` does not replace
+/// it silently: it is refused before anything is written; `--force` replaces it; a rerun
 /// replaces rootfuse's own estimate of the same input without `--force`, but not one written
 /// for another input of the same name, nor one the user changed since.
 #[test]
@@ -121,8 +121,8 @@ fn run_replaces_only_its_own_output_of_the_same_input() {
 }
 
 /// A symbolic link in `--out` where an estimate goes (here: the input itself, linked into
-/// the output folder) used to be replaced by the estimate. It is refused, with `--force`
-/// too; the link and its target are untouched.
+/// the output folder) is not replaced by the estimate: it is refused, with `--force` too;
+/// the link and its target are untouched.
 #[cfg(unix)]
 #[test]
 fn run_never_replaces_a_symbolic_link() {
@@ -153,8 +153,8 @@ fn run_never_replaces_a_symbolic_link() {
     }
 }
 
-/// `simulate` stopped by SIGTERM (or SIGINT) used to leave `<out>.tmp.<pid>` (hundreds of
-/// MB at scale) that no later run removed. Now it removes its temporary file and exits 130,
+/// `simulate` stopped by SIGTERM (or SIGINT) leaves no `<out>.tmp.<pid>` (hundreds of MB at
+/// scale): it removes its temporary file and exits 130,
 /// and a later `simulate` removes the stale temporary files of its output that a killed one
 /// left.
 #[cfg(unix)]
@@ -182,7 +182,7 @@ fn simulate_leaves_no_temporary_file() {
     assert!(others.exists());
 }
 
-/// A run that fails used to leave the `--out` folder it had just created, empty. It is
+/// A run that fails leaves no empty `--out` folder of its own: the folder it created is
 /// removed again (only if it is empty and this run created it).
 #[test]
 fn failed_run_leaves_no_new_out_folder() {
@@ -202,8 +202,8 @@ fn failed_run_leaves_no_new_out_folder() {
 }
 
 /// One rule for a run of several inputs where a later one is bad: without `--keep-going` the
-/// run writes all its estimates or none (exit 2). Parquet used to write the good estimate and
-/// CSV nothing; with `--keep-going` both write the good ones (exit 1).
+/// run writes all its estimates or none (exit 2), Parquet and CSV alike; with `--keep-going`
+/// both write the good ones (exit 1).
 #[test]
 fn a_bad_input_means_no_estimate_without_keep_going() {
     let dir = temp_dir("all-or-none");
@@ -244,8 +244,7 @@ fn a_bad_input_means_no_estimate_without_keep_going() {
 }
 
 /// SIGTERM during the second of two fleet files: the run exits 130 without writing any
-/// estimate (the first one used to be left in place while the docs said the file being
-/// written is finished: neither is what happens now, and docs/cli.md says so).
+/// estimate, the first file's included (as docs/cli.md says).
 #[cfg(unix)]
 #[test]
 fn signal_writes_no_estimate() {

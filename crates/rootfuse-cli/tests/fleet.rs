@@ -199,7 +199,7 @@ fn simulated_fleet_equals_the_library_per_device() {
 }
 
 /// A CSV recording streamed in blocks gives the same estimate file as the library's whole
-/// run (the run used to read every file whole first).
+/// run, without reading the file whole first.
 #[test]
 fn csv_streaming_equals_the_library() {
     let dir = temp_dir("csv");
@@ -604,7 +604,7 @@ fn assert_device_runs(rows: &[(i64, f64, [f64; 4])], d: u64, seconds: f64, spec:
 
 /// A `--device-params` column that the command line also sets is the documented precedence,
 /// said aloud: the table's value for its devices, the command line's for the others. A
-/// table with one parameter in two columns is refused (the last column used to win).
+/// table with one parameter in two columns is refused (the last column does not win).
 #[test]
 fn device_params_over_the_command_line_is_said_aloud() {
     let dir = temp_dir("device_params_over");

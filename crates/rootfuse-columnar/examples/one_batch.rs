@@ -1,5 +1,5 @@
 //! Rewrites a Parquet fleet as an Arrow IPC file or stream of ONE record batch, the layout
-//! that used to cost `rootfuse run` the whole batch in memory (issue 26; pandas'
+//! that costs a reader decoding whole batches the whole batch in memory (issue 26; pandas'
 //! `to_feather` and many exporters write a table as one batch). Used by
 //! `scripts/fleet-memory.sh`; it holds the whole table in memory itself.
 //!

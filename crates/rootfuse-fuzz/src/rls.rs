@@ -402,7 +402,7 @@ fn run<T, F, const N: usize>(
     // of P's accuracy, α = 1 + w·hᵀ(P/λ)h; Potter's square factor u·√α (ROBUSTNESS.md). With
     // bounds, α is measured on the P *before* the update, not on p_max: when u·α ≳ 1 (e.g.
     // λ ≲ u) the excess of one update inflates the next update's α and the loss compounds
-    // (found: f64, λ = 1e-30, p_max = 1e10: P went 1e10 → 1.2e24 = 2⁸⁰ → 1.7e38 = 2¹²⁷ in two
+    // (found: f64, λ = 1e-30, p_max = 1e10: P goes 1e10 → 1.2e24 = 2⁸⁰ → 1.7e38 = 2¹²⁷ in two
     // updates, each one ulp of P/λ; corpus `regression-conventional-bounds-compounding`).
     // `p_norm` is a certified upper bound of λ_max(P) carried from the last check.
     let mut p_norm = Into::<f64>::into(p0) * (1.0 + n_eps);

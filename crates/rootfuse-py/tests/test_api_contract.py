@@ -1,5 +1,5 @@
 """Python given what a new user tries (issue #34, item 7): impossible sizes are a MemoryError
-before anything is allocated, and values that used to be silently wrong are refused or kept;
+before anything is allocated, and values that would be silently wrong are refused or kept;
 every refusal names the argument and says what was expected."""
 
 import inspect
@@ -20,8 +20,8 @@ Z = 2 + 3 * H[:, 1]
 
 
 def test_impossible_channel_count_is_a_memory_error():
-    # (2**40, 0, 3) holds no memory but claims 2**40 channels: the interpreter used to abort
-    # on an 8.8 TB allocation.
+    # (2**40, 0, 3) holds no memory but claims 2**40 channels: allocated as asked, the
+    # interpreter aborts on an 8.8 TB allocation.
     empty = np.empty((2**40, 0, 3))
     with pytest.raises(MemoryError, match="channels need about 1280 bytes each"):
         rf.run_many("mahony", empty, empty, None, 0.01, dof=6)

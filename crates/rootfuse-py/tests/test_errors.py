@@ -102,7 +102,7 @@ def test_bad_filter_and_params():
         rf.Filter("mahony", kp="0.5")
     with pytest.raises(ValueError, match="dof: expected 6 or 9, got 7"):
         rf.Filter("mahony", dof=7)
-    # gyro has no 6D/9D choice: a dof for it used to be ignored.
+    # gyro has no 6D/9D choice: a dof for it is refused, not ignored.
     for dof in (6, 9):
         with pytest.raises(
             ValueError,

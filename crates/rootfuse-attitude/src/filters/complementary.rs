@@ -24,7 +24,7 @@ params! {
 /// horizontal axis that turns the measured gravity toward up by the fraction
 /// `1 − exp(−dt/tau_acc)` of the angle, and a rotation about earth-z that turns the horizontal
 /// field toward north by `1 − exp(−dt/tau_mag)` ([`lowpass_gain`](crate::blocks::lowpass_gain):
-/// exact for any `dt`, where `dt/τ` clipped at 1 was first order only).
+/// exact for any `dt`, where `dt/τ` clipped at 1 is first order only).
 ///
 /// Because the heading correction is a rotation about earth-z, a magnetic disturbance can
 /// never tilt the inclination (unlike filters that feed the magnetometer into all axes).
