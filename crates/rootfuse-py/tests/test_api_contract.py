@@ -31,8 +31,10 @@ def test_bias_is_checked_in_the_filters_precision():
     f = rf.Filter("flagship", precision="f32")
     with pytest.raises(ValueError, match="not representable in this f32 filter"):
         f.set_bias([1e39, 0, 0])
-    # The same value is finite in f64, so an f64 filter takes it.
-    assert rf.Filter("flagship").set_bias([1e39, 0, 0])
+    # Finite in f64, but no gyro bias is above 1 rad/s: refused there as a unit error.
+    with pytest.raises(ValueError, match=r"`bias` = 1000+ is outside \[-1, 1\]; nothing was set"):
+        rf.Filter("flagship").set_bias([1e39, 0, 0])
+    assert rf.Filter("flagship").set_bias([0.5, 0, 0])
 
 
 def test_a_bias_set_before_the_first_sample_is_kept():
