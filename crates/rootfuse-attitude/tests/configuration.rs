@@ -5,6 +5,13 @@ use rootfuse_attitude::registry::{Assignment, FilterKind, FilterSpec, RegistryEr
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Quat, Vec3};
 use rootfuse_eval::sim::scenario;
 
+/// A registered filter in f64 with its defaults at `dof`, and a name for messages.
+fn filter(kind: FilterKind, dof: Dof) -> (String, rootfuse_attitude::registry::AnyFilter<f64>) {
+    let mut spec = FilterSpec::new(kind.name()).unwrap();
+    spec.set_dof(dof).unwrap();
+    (format!("{} {dof}", kind.name()), spec.build())
+}
+
 fn level_sample() -> ImuSample<f64> {
     ImuSample::new(
         Vec3::zero(),
@@ -255,10 +262,7 @@ fn state_control() {
     let target = Quat::from_euler_zyx(0.7, 0.2, -0.1);
     for &kind in FilterKind::ALL {
         for dof in [Dof::Six, Dof::Nine] {
-            let name = format!("{} {dof}", kind.name());
-            let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
-            let mut f = spec.build::<f64>();
+            let (name, mut f) = filter(kind, dof);
             f.update(&level_sample(), 0.01);
             f.set_quat(target, None).unwrap();
             assert!(f.quat().angle_to(target) < 1e-9, "{name}: set_quat");
@@ -419,10 +423,7 @@ fn setters_refuse_bad_values_and_set_sigma() {
     let q = Quat::from_euler_zyx(0.4, 0.1, -0.05);
     for &kind in FilterKind::ALL {
         for dof in [Dof::Six, Dof::Nine] {
-            let name = format!("{} {dof}", kind.name());
-            let mut spec = FilterSpec::new(kind.name()).unwrap();
-            spec.set_dof(dof).unwrap();
-            let mut f = spec.build::<f64>();
+            let (name, mut f) = filter(kind, dof);
             for _ in 0..300 {
                 f.update(&level_sample(), 0.01);
             }

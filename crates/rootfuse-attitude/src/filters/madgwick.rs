@@ -5,7 +5,6 @@ use super::{
     Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
     up,
 };
-use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -96,21 +95,7 @@ impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
         self.q = Quat::select(s.step, q_new, self.q);
         self.bias = Vec3::select(s.step, bias, self.bias);
     }
-    fn reset(&mut self) {
-        self.q = Quat::identity();
-        self.bias = Vec3::zero();
-        self.initialized = <T::Mask as Mask>::splat(false);
-        self.rejections = Rejections::default();
-    }
-    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
-        self.q = quat_without_covariance(q, sigma)?;
-        self.initialized = <T::Mask as Mask>::splat(true);
-        Ok(())
-    }
-    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
-        self.bias = bias_without_covariance(bias, sigma)?;
-        Ok(())
-    }
+    crate::filters::quat_bias_state!();
     fn quat(&self) -> Quat<T> {
         self.q
     }

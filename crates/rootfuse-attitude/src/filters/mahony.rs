@@ -1,10 +1,7 @@
 //! Mahony's explicit complementary filter [`mahony`].
 
 use super::LaneParams;
-use super::{
-    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, StateError,
-    bias_without_covariance, initialise, params, quat_without_covariance,
-};
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use crate::blocks::{integrate_gyro, magnetic_heading_error};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -119,21 +116,7 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         self.q = Quat::select(s.step, q_new, self.q);
         self.bias = Vec3::select(s.step, bias, self.bias);
     }
-    fn reset(&mut self) {
-        self.q = Quat::identity();
-        self.bias = Vec3::zero();
-        self.initialized = <T::Mask as Mask>::splat(false);
-        self.rejections = Rejections::default();
-    }
-    fn set_quat(&mut self, q: Quat<T>, sigma: Option<T>) -> Result<(), StateError> {
-        self.q = quat_without_covariance(q, sigma)?;
-        self.initialized = <T::Mask as Mask>::splat(true);
-        Ok(())
-    }
-    fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
-        self.bias = bias_without_covariance(bias, sigma)?;
-        Ok(())
-    }
+    crate::filters::quat_bias_state!();
     fn quat(&self) -> Quat<T> {
         self.q
     }

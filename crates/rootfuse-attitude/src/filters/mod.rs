@@ -69,6 +69,37 @@ macro_rules! uniform_constructors {
 }
 pub(crate) use uniform_constructors;
 
+/// `reset`, `set_quat` and `set_bias` of a filter whose state is `q`, `bias`, `initialized`
+/// and `rejections` alone (no covariance): written once for Mahony and Madgwick.
+macro_rules! quat_bias_state {
+    () => {
+        fn reset(&mut self) {
+            self.q = Quat::identity();
+            self.bias = Vec3::zero();
+            self.initialized = <T::Mask as Mask>::splat(false);
+            self.rejections = Rejections::default();
+        }
+        fn set_quat(
+            &mut self,
+            q: Quat<T>,
+            sigma: Option<T>,
+        ) -> Result<(), crate::filters::StateError> {
+            self.q = crate::filters::quat_without_covariance(q, sigma)?;
+            self.initialized = <T::Mask as Mask>::splat(true);
+            Ok(())
+        }
+        fn set_bias(
+            &mut self,
+            bias: Vec3<T>,
+            sigma: Option<T>,
+        ) -> Result<(), crate::filters::StateError> {
+            self.bias = crate::filters::bias_without_covariance(bias, sigma)?;
+            Ok(())
+        }
+    };
+}
+pub(crate) use quat_bias_state;
+
 pub use complementary::{Complementary, ComplementaryParams};
 pub use complementary_reconstruction::{
     ComplementaryReconstruction, ComplementaryReconstructionParams,

@@ -119,11 +119,7 @@ params! {
 ///   measured tables in docs/accuracy.md); they are not the source's (it gives none).
 #[derive(Clone, Debug)]
 pub struct LsqFusion<T: Lane> {
-    hampel: [Hampel<T, 5>; 3],
-    smooth: [LowPass<T>; 3],
-    denoise: [PolyDenoiser<T, 3>; 3],
-    drift: DriftEstimator<T>,
-    fusion: Potter<T, 4>,
+    stages: Stages<T>,
     q: Quat<T>,
     /// Forgetting gain `1 − exp(−dt/fusion_tau)` of the quaternion RLS.
     fusion_gain: LowPassGain<T>,
@@ -139,7 +135,9 @@ pub struct LsqFusion<T: Lane> {
     params: LsqFusionParams,
 }
 
-/// The stages of [`LsqFusion`] that carry state.
+/// The stages of [`LsqFusion`] that carry state: pre-processing per gyro axis, the drift
+/// estimator and the quaternion fusion.
+#[derive(Clone, Debug)]
 struct Stages<T: Lane> {
     hampel: [Hampel<T, 5>; 3],
     smooth: [LowPass<T>; 3],
@@ -196,19 +194,8 @@ impl<T: Lane> LsqFusion<T> {
         let positive = |v: f64, default: f64| if v > 0.0 && v.is_finite() { v } else { default };
         let hampel_threshold = lanes.coef(|p| hampel_threshold(p.hampel_k));
         let smooth_factor = lanes.coef(|p| low_pass_factor(p.smooth));
-        let Stages {
-            hampel,
-            smooth,
-            denoise,
-            drift,
-            fusion,
-        } = Stages::new(hampel_threshold, smooth_factor, p);
         Self {
-            hampel,
-            smooth,
-            denoise,
-            drift,
-            fusion,
+            stages: Stages::new(hampel_threshold, smooth_factor, p),
             q: Quat::identity(),
             fusion_gain: LowPassGain::new(lanes.coef(|p| positive(p.fusion_tau, 3.0))),
             acc_weight: lanes.coef(|p| {
@@ -231,7 +218,7 @@ impl<T: Lane> LsqFusion<T> {
 
     /// The drift estimator (its covariance and unclamped estimate).
     pub fn drift(&self) -> &DriftEstimator<T> {
-        &self.drift
+        &self.stages.drift
     }
 }
 
@@ -251,18 +238,18 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         let g = s.gyr.to_array();
         let mut denoised = [zero; 3];
         for i in 0..3 {
-            let h = self.hampel[i].update_where(g[i], s.step);
-            let l = self.smooth[i].update_where(h, s.step);
-            denoised[i] = self.denoise[i].update(l, s.dt, s.step);
+            let h = self.stages.hampel[i].update_where(g[i], s.step);
+            let l = self.stages.smooth[i].update_where(h, s.step);
+            denoised[i] = self.stages.denoise[i].update(l, s.dt, s.step);
         }
         let gyr = Vec3::select(s.step, Vec3::from_array(denoised), Vec3::zero());
 
         // 4: the compensated quaternion as the fusion's time update. Where `!step`, `dt = 0`
         // makes the transition the identity and λ = 1: the state keeps its values.
-        let turn = Quat::from_rotation_vector((gyr - self.drift.bias()) * s.dt);
+        let turn = Quat::from_rotation_vector((gyr - self.stages.drift.bias()) * s.dt);
         let f = right_mul_matrix(turn);
         let mut trace = zero;
-        for row in &self.fusion.factor().m {
+        for row in &self.stages.fusion.factor().m {
             for &v in row {
                 trace = v.mul_add(v, trace);
             }
@@ -276,8 +263,8 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         let ceiling = T::from_f64(4.0) * k / (self.acc_weight * T::from_f64(4.0));
         let lambda = T::select(trace.simd_ge(ceiling), one, one - k);
         // No bounds are configured, so the transition is always accepted as a call.
-        let _ = self.fusion.predict(&f, lambda);
-        let x = self.fusion.estimate();
+        let _ = self.stages.fusion.predict(&f, lambda);
+        let x = self.stages.fusion.estimate();
         let predicted = Quat::new(x[0], x[1], x[2], x[3]).normalize();
 
         // The accelerometer quaternion: `source` turned about a horizontal axis until gravity
@@ -303,9 +290,10 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         let wq = w * T::from_f64(4.0);
         let h = Mat::<T, 4, 4>::identity();
         let zv = Vector::from_column(z);
-        self.fusion
+        self.stages
+            .fusion
             .update_vector(&h, &zv, &Vector::from_column([wq; 4]));
-        let x = self.fusion.estimate();
+        let x = self.stages.fusion.estimate();
         let fused = Quat::new(x[0], x[1], x[2], x[3]).normalize();
         self.q = Quat::select(s.step, fused, self.q);
 
@@ -319,18 +307,10 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
             w: rel,
             w_z,
         };
-        self.drift.update(&sample, q_a);
+        self.stages.drift.update(&sample, q_a);
     }
     fn reset(&mut self) {
-        let Stages {
-            hampel,
-            smooth,
-            denoise,
-            drift,
-            fusion,
-        } = Stages::new(self.hampel_threshold, self.smooth_factor, &self.params);
-        (self.hampel, self.smooth, self.denoise) = (hampel, smooth, denoise);
-        (self.drift, self.fusion) = (drift, fusion);
+        self.stages = Stages::new(self.hampel_threshold, self.smooth_factor, &self.params);
         self.q = Quat::identity();
         self.rejections = Rejections::default();
     }
@@ -344,7 +324,7 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
             RlsConfig::new(1.0),
         )
         .map_err(|_| StateError::Unsupported("finite quaternion state"))?;
-        self.fusion = fusion;
+        self.stages.fusion = fusion;
         self.q = q;
         Ok(())
     }
@@ -352,13 +332,13 @@ impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
         self.q
     }
     fn bias(&self) -> Vec3<T> {
-        self.drift.bias()
+        self.stages.drift.bias()
     }
     /// Sets the drift estimate (clamped to `drift_max`, as every estimate is; its covariance
     /// kept).
     fn set_bias(&mut self, bias: Vec3<T>, sigma: Option<T>) -> Result<(), StateError> {
         let bias = bias_without_covariance(bias, sigma)?;
-        if self.drift.set_bias(bias) {
+        if self.stages.drift.set_bias(bias) {
             Ok(())
         } else {
             Err(StateError::Unsupported("finite drift state"))
