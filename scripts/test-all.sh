@@ -21,11 +21,11 @@ if [ ! -x .venv/bin/python ]; then
 fi
 # Spark 4 (applyInArrow, which needs pandas) for the fleet tests; venv-pack packs the
 # environment test_spark_deploy.py ships to Spark's executor; vqf is the peer the accuracy
-# tests run beside the flagship. Downloads overlap the Rust build.
+# tests run beside the flagship (pinned: the tests pin ratios to its numbers). Downloads overlap the Rust build.
 (
     .venv/bin/python -m pip install --quiet --upgrade pip &&
     .venv/bin/python -m pip install --quiet "maturin>=1.5,<2" numpy pytest mypy pyarrow \
-        "pyspark>=4.0,<5" "pandas>=2.2,<3" venv-pack vqf
+        "pyspark>=4.0,<5" "pandas>=2.2,<3" venv-pack "vqf==2.1.2"
 ) >"$logs/pip.log" 2>&1 &
 pip_job=$!
 

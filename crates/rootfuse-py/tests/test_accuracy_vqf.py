@@ -1,0 +1,112 @@
+"""The flagship beside VQF (the `vqf` package, its C++ core), run here on the same samples:
+the simulated hard cases for inclination and the shared BROAD trials, online and offline; and
+the flagship's covariance coverage on BROAD.
+
+The goal (issue #35) is the flagship at or below VQF everywhere. Where it is not yet, the
+ratio is pinned in KNOWN_BEHIND at what it is, so it cannot get worse unnoticed, and a pin
+that the flagship has since beaten fails too, so the list stays true. The tables are
+`benches/python/accuracy_peers.py` (docs/accuracy.md); this test uses its code.
+"""
+
+import os
+import pathlib
+import sys
+
+import numpy as np
+import pytest
+
+import rootfuse as rf
+
+try:
+    import vqf  # noqa: F401 - the peer, run by accuracy_peers
+except ImportError:
+    if os.environ.get("CI"):
+        raise  # scripts/test-all.sh installs it: under CI a missing peer fails
+    pytest.skip("vqf absent (.venv/bin/pip install vqf==2.1.2): not compared", allow_module_level=True)
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "benches" / "python"))
+import accuracy_peers as peers  # noqa: E402
+
+# (data set, "online" | "offline", "total" | "inclination") -> largest ratio flagship / VQF
+# allowed: the measured ratio (vqf 2.1.2, 5 seeds of 120 s, 100 Hz) plus about 2 %.
+KNOWN_BEHIND = {
+    ("pendulum-6d 6D", "offline", "total"): 1.47,
+    ("pendulum-6d 6D", "offline", "inclination"): 1.52,
+    ("pendulum-disturbed 9D", "online", "total"): 2.18,
+    ("pendulum-disturbed 9D", "offline", "total"): 2.51,
+    ("pendulum-disturbed 9D", "offline", "inclination"): 1.52,
+    ("handheld-translation-6d 6D", "online", "total"): 1.08,
+    ("handheld-translation-6d 6D", "online", "inclination"): 1.134,
+    ("handheld-translation-disturbed 9D", "online", "inclination"): 1.136,
+    ("handheld-translation-disturbed 9D", "offline", "total"): 1.314,
+    ("BROAD, 14 trials, 9D", "online", "inclination"): 1.118,
+    ("BROAD, 14 trials, 9D", "offline", "inclination"): 1.163,
+    ("BROAD, 14 trials, 6D", "online", "inclination"): 1.118,
+    ("BROAD, 14 trials, 6D", "offline", "inclination"): 1.162,
+}
+
+
+def ratios(rows):
+    """{(data set, mode, metric): flagship / VQF} over the tables' rows."""
+    out = {}
+    for label, s in rows:
+        for mode in ("online", "offline"):
+            for i, metric in enumerate(("total", "inclination")):
+                out[(label, mode, metric)] = s[f"flagship {mode}"][i] / s[f"VQF {mode}"][i]
+    return out
+
+
+def check(got):
+    failures = []
+    for key, ratio in sorted(got.items()):
+        cap = KNOWN_BEHIND.get(key)
+        if cap is None and ratio > 1.0:
+            failures.append(f"{key}: {ratio:.3f} × VQF, behind it")
+        elif cap is not None and ratio > cap:
+            failures.append(f"{key}: {ratio:.3f} × VQF, worse than the pinned {cap}")
+        elif cap is not None and ratio <= 1.0:
+            failures.append(f"{key}: {ratio:.3f} × VQF, now level or ahead: remove it from KNOWN_BEHIND")
+    return failures
+
+
+def test_the_hard_cases_beside_vqf():
+    got = ratios(peers.scenario_rows(5, 120.0))
+    assert len(got) == 24
+    failures = check(got)
+    assert not failures, "\n".join(failures)
+
+
+def test_broad_beside_vqf(broad_dir):
+    rows = peers.broad_rows(broad_dir)
+    assert [label for label, _ in rows] == ["BROAD, 14 trials, 9D", "BROAD, 14 trials, 6D"]
+    failures = check(ratios(rows))
+    assert not failures, "\n".join(failures)
+
+
+def test_broad_covariance_coverage(broad_dir):
+    # Mean over the 14 trials of the share of samples inside the 95 % ellipsoid (first 10 %
+    # of each trial skipped). Measured: 9D total 0.776, with a 0.5° floor for the optical
+    # truth's own error 0.878 (the goal, 0.90-0.98, is not met), inclination with the floor
+    # 0.956; 6D total with the floor 0.961.
+    files = sorted(p for p in pathlib.Path(broad_dir).glob("*.csv") if p.name[:2].isdigit())
+    assert len(files) == 14
+    cover = {}
+    for dof in (9, 6):
+        for floor in (0.0, 0.5):
+            cover[dof, floor] = []
+        for p in files:
+            rec = rf.read_csv(p)
+            out = rf.Filter("flagship", dof=dof).update_batch(
+                rec["gyr"], rec["acc"], rec["mag"] if dof == 9 else None, t=rec["t"]
+            )
+            for floor in (0.0, 0.5):
+                c = rf.consistency(
+                    out["quat"], out["covariance"], rec["truth"], use=rec.get("use"),
+                    dof=dof, floor_deg=floor, skip=0.1,
+                )
+                cover[dof, floor].append((c["coverage_total"], c["coverage_inclination"]))
+    mean = {k: np.mean(v, axis=0) for k, v in cover.items()}
+    assert 0.765 <= mean[9, 0.0][0] <= 0.79, mean[9, 0.0]
+    assert 0.87 <= mean[9, 0.5][0] <= 0.98, mean[9, 0.5]
+    assert 0.95 <= mean[9, 0.5][1] <= 0.98, mean[9, 0.5]
+    assert 0.95 <= mean[6, 0.5][0] <= 0.98, mean[6, 0.5]
