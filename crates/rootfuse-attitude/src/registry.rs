@@ -488,6 +488,16 @@ impl FilterSpec {
     pub fn params(&self) -> &AnyParams {
         &self.params
     }
+    /// The spec each pass of the offline smoother ([`crate::smooth::forward_backward`])
+    /// builds: for `sqrt-eskf` [`SqrtEskfParams::for_smoothing`], for the other filters this
+    /// spec unchanged.
+    pub fn for_smoothing(&self) -> Self {
+        let mut spec = self.clone();
+        if let AnyParams::SqrtEskf(p) = &self.params {
+            spec.params = AnyParams::SqrtEskf(p.for_smoothing());
+        }
+        spec
+    }
     /// A fresh filter over lanes of type `T` with these parameters.
     pub fn build<T: Lane>(&self) -> AnyFilter<T> {
         AnyFilter::build(&self.params)

@@ -79,6 +79,12 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 /// the module documentation). `nine_d` says the filter's heading is absolute (magnetometer in
 /// use); otherwise the backward pass is first aligned to the forward one in heading.
 ///
+/// For the flagship, build the passes from [`SqrtEskfParams::for_smoothing`]
+/// (`FilterSpec::for_smoothing` in the registry; `rootfuse run --offline` and Python's
+/// `smooth` do): offline the accelerometer time constant is longer than online.
+///
+/// [`SqrtEskfParams::for_smoothing`]: crate::SqrtEskfParams::for_smoothing
+///
 /// # Errors
 /// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
 pub fn forward_backward<F: OrientationFilter<f64>>(

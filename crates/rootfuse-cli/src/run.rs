@@ -432,7 +432,8 @@ fn smooth_files(
                 ));
             }
             crate::stream::check_mag(job, file, rec.mag.is_some())?;
-            let smoothed = forward_backward(&rec, || job.spec.build::<f64>(), job.nine_d)
+            let spec = job.spec.for_smoothing();
+            let smoothed = forward_backward(&rec, || spec.build::<f64>(), job.nine_d)
                 .map_err(|e| format!("{}: {e}", rec.name))?;
             if interrupted() {
                 exit_interrupted();

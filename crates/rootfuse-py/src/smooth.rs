@@ -39,6 +39,7 @@ pub fn smooth<'py>(
     let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, steps.times(n), None, None);
     let nine_d = spec.uses_magnetometer();
+    let spec = spec.for_smoothing();
     let result = py.detach(|| {
         rootfuse_attitude::smooth::forward_backward(&rec, || spec.build::<f64>(), nine_d)
     });
