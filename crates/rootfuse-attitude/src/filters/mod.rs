@@ -249,40 +249,39 @@ impl From<InvalidParam> for StateError {
     }
 }
 
-/// The value of the first lane where `ok` fails, as f64.
-fn first_failing<T: Lane>(value: T, ok: T::Mask) -> Option<f64> {
-    (0..T::LANES)
-        .find(|&i| !ok.test(i))
-        .map(|i| value.extract(i).into())
+/// `Ok` if `ok` holds in every lane; else the value of the first lane where it fails,
+/// refused as `name` outside `[min, max]`.
+fn within<T: Lane>(
+    name: &'static str,
+    value: T,
+    ok: T::Mask,
+    min: f64,
+    max: f64,
+) -> Result<(), StateError> {
+    match (0..T::LANES).find(|&i| !ok.test(i)) {
+        Some(i) => Err(StateError::Invalid(InvalidParam {
+            name,
+            value: value.extract(i).into(),
+            min,
+            max,
+        })),
+        None => Ok(()),
+    }
 }
 
 /// `q` normalised, if every lane's norm is in [0.5, 2] (NaN fails).
 pub(crate) fn checked_quat<T: Lane>(q: Quat<T>) -> Result<Quat<T>, StateError> {
     let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
     let ok = norm.simd_ge(T::from_f64(0.5)) & norm.simd_le(T::from_f64(2.0));
-    match first_failing(norm, ok) {
-        Some(value) => Err(StateError::Invalid(InvalidParam {
-            name: "|q|",
-            value,
-            min: 0.5,
-            max: 2.0,
-        })),
-        None => Ok(q.normalize()),
-    }
+    within("|q|", norm, ok, 0.5, 2.0)?;
+    Ok(q.normalize())
 }
 
 /// `sigma` if every lane is in [0, max] (NaN fails).
 pub(crate) fn checked_sigma<T: Lane>(sigma: T, max: f64) -> Result<T, StateError> {
     let ok = sigma.simd_ge(T::zero()) & sigma.simd_le(T::from_f64(max));
-    match first_failing(sigma, ok) {
-        Some(value) => Err(StateError::Invalid(InvalidParam {
-            name: "sigma",
-            value,
-            min: 0.0,
-            max,
-        })),
-        None => Ok(sigma),
-    }
+    within("sigma", sigma, ok, 0.0, max)?;
+    Ok(sigma)
 }
 
 /// `bias` if every component of every lane is finite and at most 1 rad/s in magnitude.
@@ -290,14 +289,15 @@ pub(crate) fn checked_bias<T: Lane>(bias: Vec3<T>) -> Result<Vec3<T>, StateError
     let largest = bias.x.abs().max(bias.y.abs()).max(bias.z.abs());
     let nan = bias.x.is_nan() | bias.y.is_nan() | bias.z.is_nan();
     let shown = T::select(nan, T::from_f64(f64::NAN), largest);
-    match first_failing(shown, largest.simd_le(T::one()) & !nan) {
-        Some(value) => Err(StateError::Invalid(InvalidParam {
-            name: "bias",
-            value,
-            min: -1.0,
-            max: 1.0,
-        })),
-        None => Ok(bias),
+    within("bias", shown, largest.simd_le(T::one()) & !nan, -1.0, 1.0)?;
+    Ok(bias)
+}
+
+/// A `sigma` given to a filter that carries no covariance for it (`what`) is refused.
+fn no_covariance<T>(sigma: Option<T>, what: &'static str) -> Result<(), StateError> {
+    match sigma {
+        Some(_) => Err(StateError::Unsupported(what)),
+        None => Ok(()),
     }
 }
 
@@ -308,10 +308,8 @@ pub(crate) fn quat_without_covariance<T: Lane>(
     sigma: Option<T>,
 ) -> Result<Quat<T>, StateError> {
     let q = checked_quat(q)?;
-    match sigma {
-        Some(_) => Err(StateError::Unsupported("attitude covariance")),
-        None => Ok(q),
-    }
+    no_covariance(sigma, "attitude covariance")?;
+    Ok(q)
 }
 
 /// `set_bias` for filters without a bias covariance: `bias` checked, a `sigma` refused.
@@ -320,10 +318,8 @@ pub(crate) fn bias_without_covariance<T: Lane>(
     sigma: Option<T>,
 ) -> Result<Vec3<T>, StateError> {
     let bias = checked_bias(bias)?;
-    match sigma {
-        Some(_) => Err(StateError::Unsupported("gyro-bias covariance")),
-        None => Ok(bias),
-    }
+    no_covariance(sigma, "gyro-bias covariance")?;
+    Ok(bias)
 }
 
 /// Shared initialisation: where a lane is not yet initialised and this sample has a usable

@@ -24,10 +24,9 @@ impl<T: Lane> SqrtEskf<T> {
         sigma: Option<T>,
     ) -> Result<(), StateError> {
         let q = checked_quat(q)?;
-        let sigma = match sigma {
-            Some(s) => Some(checked_sigma(s, core::f64::consts::PI)?),
-            None => None,
-        };
+        let sigma = sigma
+            .map(|s| checked_sigma(s, core::f64::consts::PI))
+            .transpose()?;
         self.move_to(q);
         let st = &mut self.state;
         match sigma {
