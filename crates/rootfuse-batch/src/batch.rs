@@ -86,7 +86,7 @@ pub trait ChannelSource: Sync {
     /// The default reads them one at a time through `sample` and `dt`. Sources over
     /// contiguous arrays override it with one pass over their memory (and may read `f32`
     /// storage directly: `f32 → f64 → lane` rounds exactly as `f32 → lane`). Either way the
-    /// engine calls it once per channel and tile of [`TILE_STEPS`] steps, so the channel's
+    /// engine calls it once per channel and tile of [`tile_steps`] steps, so the channel's
     /// memory is read in order and the filters take whole vectors from a tile in L1.
     fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
         for (k, (s, dt)) in tile.iter_mut().enumerate() {
@@ -97,10 +97,27 @@ pub trait ChannelSource: Sync {
     }
 }
 
-/// Steps per tile of [`Chunk::run_sources`]: each channel of a chunk hands over this many
-/// samples at once ([`ChannelSource::read_into`]). 64 steps of `f32x8` or `f64x4` samples are
-/// 20 KiB (40 KiB for `X2`), within L1d beside the filter's working set.
+/// Most steps per tile of [`Chunk::run_sources`]: each channel of a chunk hands over up to
+/// this many samples at once ([`ChannelSource::read_into`]); [`tile_steps`] gives the number
+/// for a lane type.
 pub const TILE_STEPS: usize = 64;
+
+/// Bytes of a tile at most: each channel of a chunk writes its lane of every entry, so the
+/// whole tile is written once per channel before the filter reads it; a tile larger than L1d
+/// (32 KiB on common cores) is evicted by its own writes and every lane store misses.
+/// 16 KiB leaves room for the filter's state and the channels' input.
+pub const TILE_BYTES: usize = 16 * 1024;
+
+/// Steps per tile for lanes `L`: as many as fit in [`TILE_BYTES`], between 8 and
+/// [`TILE_STEPS`] (64 for scalars, 32 for `f32x8` and `f64x4`, 16 for their `X2`).
+pub const fn tile_steps<L: Lane>() -> usize {
+    let steps = TILE_BYTES / core::mem::size_of::<(ImuSample<L>, L)>();
+    let mut p = 8;
+    while p * 2 <= steps && p * 2 <= TILE_STEPS {
+        p *= 2;
+    }
+    p
+}
 
 /// Sets lane `lane` of `s` to the `f64` sample `x`, each value rounded to the lane's precision.
 #[inline]
@@ -284,7 +301,7 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
     /// channel shorter than a step is masked there), calling `each(step, chunk, active)`
     /// after every step with the bits of the lanes that had a sample.
     ///
-    /// Samples are packed into lanes a tile of [`TILE_STEPS`] steps at a time: each channel
+    /// Samples are packed into lanes a tile of [`tile_steps`] steps at a time: each channel
     /// writes its next samples into its lane of a struct-of-arrays tile
     /// ([`ChannelSource::read_into`], one pass over its memory), then the filter runs the
     /// tile's steps on whole vectors. The tile is made once per call: nothing is allocated
@@ -300,11 +317,12 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         let all = if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
         // Lanes past `n` keep the padding sample; `update_masked` decides what they get.
         let mut tile = [(self.pad, self.pad_dt); TILE_STEPS];
+        let tile_len = tile_steps::<L>();
         // Per lane, the steps of the current tile its channel has.
         let mut avail = vec![0usize; n];
         let mut k0 = steps.start;
         while k0 < steps.end {
-            let len = (steps.end - k0).min(TILE_STEPS);
+            let len = (steps.end - k0).min(tile_len);
             for (i, src) in sources[..n].iter().enumerate() {
                 let m = src.len().saturating_sub(k0).min(len);
                 src.read_into(k0, i, &mut tile[..m]);

@@ -80,7 +80,8 @@
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and
 //! array-of-structs input ([`Batch::run_channels`], [`run_recordings`]) is packed into lanes
-//! a tile of [`TILE_STEPS`] steps at a time: each channel writes its next samples into its
+//! a tile of [`tile_steps`] steps at a time (at most [`TILE_BYTES`], within L1d): each
+//! channel writes its next samples into its
 //! lane of a struct-of-arrays tile made once per chunk and call
 //! ([`ChannelSource::read_into`]: one pass over the channel's memory, overridden by sources
 //! over contiguous arrays, such as the Python package's NumPy input, to read `f32` or `f64`
@@ -150,8 +151,8 @@ mod throughput;
 pub use rayon;
 
 pub use batch::{
-    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, TILE_STEPS,
-    pad_sample, set_sample_lane,
+    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, TILE_BYTES,
+    TILE_STEPS, pad_sample, set_sample_lane, tile_steps,
 };
 pub use fleet::{
     BlockEstimates, FleetBlock, FleetError, FleetRunner, OnError, samples_with_missing_imu,

@@ -179,8 +179,17 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
     fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
         fill_floats(&self.gyr, start, lane, tile, |s| &mut s.gyr);
         fill_floats(&self.acc, start, lane, tile, |s| &mut s.acc);
+        // The engine keeps a channel in one lane of one tile for a whole run, and its tiles
+        // only shrink (the last one), so what the channel wrote into its first entry it wrote
+        // into every entry; the padding the tile starts with is finite, with the padding step.
+        // A lane whose first entry already holds what this channel would write again (a NaN
+        // field of 6D data, or a fixed step: equal to the padding step or written before)
+        // holds it in every entry, and those stores are skipped (a fixed step is positive, so `==`
+        // is equality of bits).
+        let first = tile.first().map(|(s, dt)| (s.mag.x.extract(lane), dt.extract(lane)));
         match &self.mag {
             Some(m) => fill_floats(m, start, lane, tile, |s| &mut s.mag),
+            None if first.is_some_and(|(mx, _)| Into::<f64>::into(mx).is_nan()) => {}
             None => {
                 let nan = <L::Scalar as Lane>::from_f64(f64::NAN);
                 for (s, _) in tile.iter_mut() {
@@ -193,6 +202,9 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
         match self.steps {
             Steps::Fixed(dt) => {
                 let dt = <L::Scalar as Lane>::from_f64(*dt);
+                if first.is_some_and(|(_, d)| d == dt) {
+                    return;
+                }
                 for (_, d) in tile.iter_mut() {
                     d.set_lane(lane, dt);
                 }
