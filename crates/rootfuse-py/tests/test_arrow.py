@@ -82,6 +82,29 @@ def test_any_arrow_stream_and_record_batches(fleet):
         pa.table(s)
 
 
+def test_a_file_path_is_read_in_rust(fleet, tmp_path):
+    table, cli_est = fleet
+    parquet = tmp_path / "fleet.parquet"
+    pq.write_table(table, parquet, row_group_size=1000)
+    ipc = tmp_path / "fleet.arrow"
+    with pa.ipc.new_file(ipc, table.schema) as writer:
+        writer.write_table(table, max_chunksize=999)
+    # A path (str or os.PathLike) of either format gives the CLI's estimates, in file order.
+    for source in (parquet, str(ipc)):
+        got = ra.estimate_table(source, "flagship", flags=True)
+        assert got.num_rows == table.num_rows
+        assert got.column("device").equals(table.column("device"))
+        _assert_same(got, cli_est)
+    _assert_same(ra.estimate_table(parquet, "flagship", flags=True, sort=True), cli_est)
+    _assert_same(ra.estimate_stream(ipc, "flagship", flags=True).read_all(), cli_est)
+    with pytest.raises(FileNotFoundError, match="missing.parquet"):
+        ra.estimate_table(tmp_path / "missing.parquet", "mahony")
+    six = tmp_path / "six.parquet"
+    pq.write_table(table.drop_columns(["mx", "my", "mz"]), six)
+    with pytest.raises(ValueError, match=r"six\.parquet: no magnetometer columns"):
+        ra.estimate_table(six, "flagship", dof=9)
+
+
 def test_float32_columns_and_options(fleet):
     table, _ = fleet
     f32 = table.set_column(table.column_names.index("gx"), "gx", table.column("gx").cast(pa.float32()))

@@ -275,7 +275,8 @@ def estimate_arrow(
     device_params: Optional[Dict[Any, Dict[str, float]]] = None,
     **params: float,
 ) -> EstimateStream:
-    """Estimates of the IMU rows of an Arrow stream (anything with ``__arrow_c_stream__``),
+    """Estimates of the IMU rows of an Arrow stream (anything with ``__arrow_c_stream__``) or
+    of a Parquet or Arrow IPC file (a ``str`` or ``os.PathLike`` path, read in Rust),
     computed as they are read."""
 
 @final
