@@ -258,10 +258,11 @@ fn smoother_beats_the_forward_filter() {
     }
 }
 
-/// Offline the passes' longer accelerometer time constant (`for_smoothing`) lowers the
-/// smoothed inclination error under motion acceleration: in each pass the lag it adds is
-/// cancelled by the other pass, the acceleration it removes is not. Measured (3 seeds, 60 s,
-/// 6D): pendulum 1.01° → 0.74°, handheld translation 0.74° → 0.65°, vehicle 9.3° → 8.0°.
+/// Offline the passes' longer accelerometer time constants (`for_smoothing`) lower the
+/// smoothed inclination error under motion acceleration: in each pass the lag they add is
+/// cancelled by the other pass, the acceleration they remove is not. Measured (3 seeds, 60 s,
+/// 6D, two windows): pendulum 0.715° → 0.692°, handheld translation 0.585° → 0.546°, vehicle
+/// 7.55° → 7.09°.
 #[test]
 fn smoothing_time_constant_lowers_the_inclination_error() {
     use rootfuse_attitude::smooth::forward_backward;
@@ -281,8 +282,45 @@ fn smoothing_time_constant_lowers_the_inclination_error() {
         }
         eprintln!("{name}: smoothed inclination {online:.3}° (online tau_acc), {offline:.3}°");
         assert!(
-            offline < 0.97 * online,
+            offline < 0.985 * online,
             "{name}: {offline:.3}° with for_smoothing, {online:.3}° without"
+        );
+    }
+}
+
+/// The second accelerometer window (`tau_acc_long`) lowers the online inclination error where
+/// the motion is translation, and leaves rotation alone, where its weight stays low. Measured
+/// (3 seeds, 60 s, 6D, one window → two): pendulum 0.918° → 0.643°, handheld translation
+/// 1.197° → 0.879°, translation 0.862° → 0.690°, vehicle 10.21° → 9.43°; fast rotation 0.879° →
+/// 0.879°, slow rotation 0.345° → 0.343°.
+#[test]
+fn second_window_serves_translation_and_leaves_rotation_alone() {
+    for (name, most) in [
+        ("pendulum-6d", 0.8),
+        ("handheld-translation-6d", 0.85),
+        ("translation", 0.9),
+        ("vehicle-6d", 0.97),
+        ("fast-rotation", 1.01),
+        ("slow-rotation", 1.01),
+    ] {
+        let (mut one, mut two) = (0.0, 0.0);
+        for seed in 0..3 {
+            let rec = scenario(name, seed, 60.0, 100.0).unwrap();
+            let incl = |tau_acc_long: f64| {
+                let p = SqrtEskfParams {
+                    tau_acc_long,
+                    ..params(6.0)
+                };
+                let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
+                evaluate(&rec, &est, Alignment::SixD).unwrap().inclination
+            };
+            one += incl(0.0) / 3.0;
+            two += incl(SqrtEskfParams::default().tau_acc_long) / 3.0;
+        }
+        eprintln!("{name}: inclination {one:.3}° with one window, {two:.3}° with two");
+        assert!(
+            two < most * one,
+            "{name}: {two:.3}° with two windows, {one:.3}° with one (at most {most}×)"
         );
     }
 }

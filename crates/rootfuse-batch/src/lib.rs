@@ -62,7 +62,7 @@
 //! | `mahony` | 196 | 336 | 186 |
 //! | `madgwick` | 180 | 304 | 172 |
 //! | `ekf` | 404 | 752 | 392 |
-//! | `sqrt-eskf` | 716 | 1376 | 694 |
+//! | `sqrt-eskf` | 844 | 1632 | 820 |
 //! | `complementary-reconstruction` | 340 | 624 | 328 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |
@@ -75,7 +75,7 @@
 //! (exact for any recording length, where an `f32` counter would stop at 2²⁴), 28 B the last
 //! sample's flags (seven masks), and about 56 B the chunk's masking state and padding sample,
 //! amortised over the lanes. Parameters are per-lane coefficients (so channels with
-//! different parameters share a chunk): the flagship's 24 cost 96 B per channel in `f32x8`;
+//! different parameters share a chunk): the flagship's 32 cost 128 B per channel in `f32x8`;
 //! the parameter set as given (`params()`, one per chunk) adds its size divided by the lanes.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and

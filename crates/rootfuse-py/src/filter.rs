@@ -186,7 +186,9 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
         // field of 6D data, or a fixed step: equal to the padding step or written before)
         // holds it in every entry, and those stores are skipped (a fixed step is positive, so `==`
         // is equality of bits).
-        let first = tile.first().map(|(s, dt)| (s.mag.x.extract(lane), dt.extract(lane)));
+        let first = tile
+            .first()
+            .map(|(s, dt)| (s.mag.x.extract(lane), dt.extract(lane)));
         match &self.mag {
             Some(m) => fill_floats(m, start, lane, tile, |s| &mut s.mag),
             None if first.is_some_and(|(mx, _)| Into::<f64>::into(mx).is_nan()) => {}

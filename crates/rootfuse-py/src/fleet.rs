@@ -321,9 +321,7 @@ pub fn estimate_arrow(
 fn fleet_reader(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<FleetReader> {
     let refuse = |e: ColumnarError| match e {
         ColumnarError::ColumnType { .. } => PyTypeError::new_err(e.to_string()),
-        ColumnarError::Io { ref source, .. }
-            if source.kind() == std::io::ErrorKind::NotFound =>
-        {
+        ColumnarError::Io { ref source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
             pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
         }
         ColumnarError::Io { .. } => pyo3::exceptions::PyOSError::new_err(e.to_string()),

@@ -30,19 +30,14 @@ import accuracy_peers as peers  # noqa: E402
 # (data set, "online" | "offline", "total" | "inclination") -> largest ratio flagship / VQF
 # allowed: the measured ratio (vqf 2.1.2, 5 seeds of 120 s, 100 Hz) plus about 2 %.
 KNOWN_BEHIND = {
-    ("pendulum-6d 6D", "offline", "total"): 1.17,
-    ("pendulum-6d 6D", "offline", "inclination"): 1.18,
-    ("pendulum-disturbed 9D", "online", "total"): 2.18,
-    ("pendulum-disturbed 9D", "offline", "total"): 2.49,
-    ("pendulum-disturbed 9D", "offline", "inclination"): 1.18,
-    ("handheld-translation-6d 6D", "online", "total"): 1.08,
-    ("handheld-translation-6d 6D", "online", "inclination"): 1.134,
-    ("handheld-translation-disturbed 9D", "online", "inclination"): 1.136,
+    ("pendulum-6d 6D", "offline", "total"): 1.073,
+    ("pendulum-6d 6D", "offline", "inclination"): 1.071,
+    ("pendulum-disturbed 9D", "online", "total"): 2.16,
+    ("pendulum-disturbed 9D", "offline", "total"): 2.48,
+    ("pendulum-disturbed 9D", "offline", "inclination"): 1.07,
     ("handheld-translation-disturbed 9D", "offline", "total"): 1.31,
-    ("BROAD, 14 trials, 9D", "online", "inclination"): 1.118,
-    ("BROAD, 14 trials, 9D", "offline", "inclination"): 1.06,
-    ("BROAD, 14 trials, 6D", "online", "inclination"): 1.118,
-    ("BROAD, 14 trials, 6D", "offline", "inclination"): 1.06,
+    ("BROAD, 14 trials, 9D", "offline", "inclination"): 1.04,
+    ("BROAD, 14 trials, 6D", "offline", "inclination"): 1.04,
 }
 
 
@@ -85,9 +80,9 @@ def test_broad_beside_vqf(broad_dir):
 
 def test_broad_covariance_coverage(broad_dir):
     # Mean over the 14 trials of the share of samples inside the 95 % ellipsoid (first 10 %
-    # of each trial skipped). Measured: 9D total 0.776, with a 0.5° floor for the optical
-    # truth's own error 0.878 (the goal, 0.90-0.98, is not met), inclination with the floor
-    # 0.956; 6D total with the floor 0.961.
+    # of each trial skipped). Measured: 9D total 0.782, with a 0.5° floor for the optical
+    # truth's own error 0.879 (the goal, 0.90-0.98, is not met), inclination with the floor
+    # 0.957; 6D total with the floor 0.962.
     files = sorted(p for p in pathlib.Path(broad_dir).glob("*.csv") if p.name[:2].isdigit())
     assert len(files) == 14
     cover = {}
@@ -106,7 +101,7 @@ def test_broad_covariance_coverage(broad_dir):
                 )
                 cover[dof, floor].append((c["coverage_total"], c["coverage_inclination"]))
     mean = {k: np.mean(v, axis=0) for k, v in cover.items()}
-    assert 0.765 <= mean[9, 0.0][0] <= 0.79, mean[9, 0.0]
+    assert 0.77 <= mean[9, 0.0][0] <= 0.80, mean[9, 0.0]
     assert 0.87 <= mean[9, 0.5][0] <= 0.98, mean[9, 0.5]
     assert 0.95 <= mean[9, 0.5][1] <= 0.98, mean[9, 0.5]
     assert 0.95 <= mean[6, 0.5][0] <= 0.98, mean[6, 0.5]

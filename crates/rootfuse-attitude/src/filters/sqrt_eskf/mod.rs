@@ -18,6 +18,9 @@ use rootfuse_lane::{Lane, Mask, Mat, Select};
 mod update;
 // Reset, and the orientation and bias set with their uncertainty.
 mod set_state;
+// The second, longer accelerometer window and the weight that blends the two.
+mod two_windows;
+use two_windows::two_stage_lowpass;
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -28,6 +31,17 @@ params! {
         bias_walk: f64 = 1e-5, "rad/s/√s", [0.0, 10.0];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
         tau_acc: f64 = 2.0, "s", [0.0, 100.0];
+        /// Time constant of a second, longer accelerometer window (0: one window). The two
+        /// windows' inclination measurements are blended by the motion: sustained
+        /// translation weighs the long window, fast rotation the short one (see
+        /// `window_ratio`).
+        tau_acc_long: f64 = 4.0, "s", [0.0, 100.0];
+        /// The ratio of translation (low-passed `|a − â|`, m/s²) to rotation (low-passed
+        /// `|ω − b̂|`, rad/s) at which the two windows weigh equally; the long window's weight
+        /// is `x⁴/(1 + x⁴)` of `x = translation / (window_ratio·rotation)`.
+        window_ratio: f64 = 1.1, "m/s", [1e-3, 1e3];
+        /// Time constant of the two low-passed motion measures that set the weight.
+        window_tau: f64 = 8.0, "s", [1e-3, 1e4];
         /// Noise density of the low-passed inclination measurement (`r = acc_noise²/dt`).
         acc_noise: f64 = 0.003, "rad·√s", [1e-9, 10.0];
         /// χ² gate of each scalar inclination innovation, in standard deviations.
@@ -38,7 +52,8 @@ params! {
         /// 1000×): motion accelerations the low-pass leaves in are then weighted as the noise
         /// they are. 0 disables. On the 14 shared BROAD trials the innovations never exceed
         /// their prediction and every estimate is bit for bit that of 0; on the simulated
-        /// pendulum (6D, 5 seeds) the inclination falls from 1.17° to 0.89° (`docs/accuracy.md`).
+        /// pendulum (6D, 5 seeds, one window) the inclination falls from 1.17° to 0.89°
+        /// (`docs/accuracy.md`).
         acc_adapt_window: f64 = 0.3, "s", [0.0, 1e6];
         /// The reported attitude covariance adds, on both inclination axes, this multiple of
         /// the running mean square of the inclination innovation (rad²): the error the motion
@@ -51,11 +66,11 @@ params! {
         /// Time constant of that running mean square, s.
         model_error_window: f64 = 1.0, "s", [0.0, 1e6];
         /// Offline only (the forward–backward smoother, [`SqrtEskfParams::for_smoothing`]):
-        /// both passes run with `tau_acc` times this. Each pass's low-pass lag is cancelled
-        /// by the other's, so offline a longer time constant removes more motion
-        /// acceleration at no cost in lag (cross-validated on BROAD, docs/accuracy.md). The
-        /// filter itself does not read it.
-        smoothing_tau_scale: f64 = 1.75, "1", [1.0, 10.0];
+        /// both passes run with `tau_acc` and `tau_acc_long` times this. Each pass's low-pass
+        /// lag is cancelled by the other's, so offline longer time constants remove more
+        /// motion acceleration at no cost in lag (cross-validated on BROAD, docs/accuracy.md).
+        /// The filter itself does not read it.
+        smoothing_tau_scale: f64 = 1.25, "1", [1.0, 10.0];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted
@@ -132,6 +147,23 @@ lane_state! {
 }
 
 lane_state! {
+    /// The long window: the two-stage low-pass of the specific force and of the strapdown
+    /// rotation (as the `tau_acc` window, [`two_windows`]), and the two low-passed motion measures.
+    struct LongWindow<T: Lane> {
+        acc_lp1: Vec3<T>,
+        /// Low-passed specific force in the `I` frame, m/s².
+        acc_lp: Vec3<T>,
+        rot_lp1: Mat<T, 3, 3>,
+        /// Low-passed sensor-to-`I` rotation (the lag term of `H`).
+        rot_lp: Mat<T, 3, 3>,
+        /// Low-passed `|a − â|`, m/s².
+        translation: T,
+        /// Low-passed `|ω − b̂|`, rad/s.
+        rotation: T,
+    }
+}
+
+lane_state! {
     /// Everything a sample changes; a lane that skips a sample keeps all of it.
     struct State<T: Lane> {
         /// Strapdown integration of the bias-corrected gyro: sensor to the quasi-inertial
@@ -154,6 +186,8 @@ lane_state! {
         rot_lp1: Mat<T, 3, 3>,
         /// Low-passed sensor-to-`I` rotation matrix (for the lag term of `H`).
         rot_lp: Mat<T, 3, 3>,
+        /// The second accelerometer window (`tau_acc_long`) and its motion measures.
+        long: LongWindow<T>,
         /// Rest detection: low-passed gyro (rad/s) and accelerometer (m/s², sensor frame).
         rest_gyr_lp: Vec3<T>,
         rest_acc_lp: Vec3<T>,
@@ -196,6 +230,9 @@ lane_state! {
         gyr_noise: T,
         bias_walk: T,
         tau_acc: T,
+        tau_acc_long: T,
+        window_ratio: T,
+        window_tau: T,
         acc_var: T,
         acc_gate: T,
         acc_adapt_window: T,
@@ -230,17 +267,20 @@ lane_state! {
 }
 
 impl SqrtEskfParams {
-    /// The parameters each pass of the offline smoother runs with: `tau_acc` scaled by
-    /// `smoothing_tau_scale`, everything else as given.
+    /// The parameters each pass of the offline smoother runs with: both accelerometer time
+    /// constants (`tau_acc`, `tau_acc_long`) scaled by `smoothing_tau_scale`, everything else
+    /// as given.
     ///
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
     /// let p = SqrtEskfParams::default();
     /// assert_eq!(p.for_smoothing().tau_acc, p.tau_acc * p.smoothing_tau_scale);
+    /// assert_eq!(p.for_smoothing().tau_acc_long, p.tau_acc_long * p.smoothing_tau_scale);
     /// ```
     pub fn for_smoothing(&self) -> Self {
         Self {
             tau_acc: self.tau_acc * self.smoothing_tau_scale,
+            tau_acc_long: self.tau_acc_long * self.smoothing_tau_scale,
             ..self.clone()
         }
     }
@@ -252,6 +292,9 @@ impl<T: Lane> Coefficients<T> {
             gyr_noise: p.coef(|p| p.gyr_noise),
             bias_walk: p.coef(|p| p.bias_walk),
             tau_acc: p.coef(|p| p.tau_acc),
+            tau_acc_long: p.coef(|p| p.tau_acc_long),
+            window_ratio: p.coef(|p| p.window_ratio),
+            window_tau: p.coef(|p| p.window_tau),
             acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
             acc_gate: p.coef(|p| p.acc_gate),
             acc_adapt_window: p.coef(|p| p.acc_adapt_window),
@@ -334,6 +377,10 @@ struct PerDt<T: Lane> {
     k_ref: T,
     k_acc: T,
     k_adapt: T,
+    /// The long window's low-pass gain (each stage `tau_acc_long/2`) and its motion
+    /// measures' gain (`window_tau`).
+    k_acc_long: T,
+    k_window: T,
     k_model: T,
 }
 
@@ -345,6 +392,9 @@ impl<T: Lane> PerDt<T> {
     fn compute(dt: T, c: &Coefficients<T>) -> Self {
         let sdt = dt.sqrt();
         let per_sample = T::select(dt.simd_gt(T::zero()), dt, T::one());
+        // The long window's gains only where some lane runs it (a jittered `dt` recomputes
+        // every gain at every sample).
+        let two_windows = c.tau_acc_long.simd_gt(T::zero()).any();
         Self {
             dt,
             gyr_std: c.gyr_noise * sdt,
@@ -356,6 +406,16 @@ impl<T: Lane> PerDt<T> {
             k_ref: lowpass_gain(dt, c.mag_ref_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
             k_adapt: lowpass_gain(dt, c.acc_adapt_window),
+            k_acc_long: if two_windows {
+                lowpass_gain(dt, c.tau_acc_long * T::from_f64(0.5))
+            } else {
+                T::zero()
+            },
+            k_window: if two_windows {
+                lowpass_gain(dt, c.window_tau)
+            } else {
+                T::zero()
+            },
             k_model: lowpass_gain(dt, c.model_error_window),
         }
     }
@@ -385,6 +445,7 @@ impl<T: Lane> State<T> {
             acc_lp1: Vec3::new(zero, zero, T::one()),
             rot_lp1: Mat::identity(),
             rot_lp: Mat::identity(),
+            long: LongWindow::new(),
             rest_gyr_lp: Vec3::zero(),
             rest_acc_lp: Vec3::zero(),
             rest_timer: zero,
@@ -468,6 +529,8 @@ impl<T: Lane> State<T> {
 ///   gyroscope), [`crate::Dof::Nine`] (default) uses it;
 /// - `tau_acc` (2 s): time constant of the accelerometer low-pass; longer rides out longer
 ///   accelerations (translation, vibration) but corrects the inclination more slowly;
+/// - `tau_acc_long` (4 s): a second, longer window, blended in by the ratio of translation to
+///   rotation (`window_ratio`, `window_tau`); 0 runs one window;
 /// - `gyr_noise` (0.005 rad/√s) against `acc_noise` (0.003 rad·√s): how far the gyroscope is
 ///   trusted over gravity; `acc_gate` (6 standard deviations) rejects outlying inclination
 ///   innovations;

@@ -61,6 +61,8 @@ impl<T: Lane> SqrtEskf<T> {
         let r = st.strapdown.to_rotation_matrix();
         st.rot_lp = Mat::select(running, &r, &st.rot_lp);
         st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
+        st.long.rot_lp = Mat::select(running, &r, &st.long.rot_lp);
+        st.long.rot_lp1 = Mat::select(running, &r, &st.long.rot_lp1);
         st.heading_offset = T::zero();
         st.preset |= !running;
     }

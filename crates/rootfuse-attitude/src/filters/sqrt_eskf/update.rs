@@ -106,6 +106,11 @@ impl<T: Lane> SqrtEskf<T> {
             st.rot_lp = Mat::select(fresh, &Mat::identity(), &st.rot_lp);
             st.acc_lp1 = Vec3::select(fresh, acc_raw, st.acc_lp1);
             st.rot_lp1 = Mat::select(fresh, &Mat::identity(), &st.rot_lp1);
+            let long = &mut st.long;
+            long.acc_lp = Vec3::select(fresh, acc_raw, long.acc_lp);
+            long.acc_lp1 = Vec3::select(fresh, acc_raw, long.acc_lp1);
+            long.rot_lp = Mat::select(fresh, &Mat::identity(), &long.rot_lp);
+            long.rot_lp1 = Mat::select(fresh, &Mat::identity(), &long.rot_lp1);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
             st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
             let (psi, psi_ok) = magnetic_heading_error(start, s.mag);
@@ -144,13 +149,17 @@ impl<T: Lane> SqrtEskf<T> {
     /// specific force by more than `acc_spike`: a corrupted sample, not motion. Compared in
     /// the sensor frame through the strapdown rotation of the previous sample (one sample of
     /// rotation changes the comparison by far less than the threshold). Not before a lane
-    /// is initialised: it has no low-pass yet.
-    fn acc_spike(&self, s: &Screened<T>) -> T::Mask {
+    /// is initialised: it has no low-pass yet. Also returns that squared deviation, (m/s²)²
+    /// (the translation the second window's weight reads).
+    fn acc_spike(&self, s: &Screened<T>) -> (T::Mask, T) {
         let st = &self.state;
         let expected = st.strapdown.rotate_inverse(st.acc_lp);
         let dev = (s.acc * s.acc_norm - expected).norm_squared();
         // `>` is false for NaN, but a screened accelerometer is finite where `acc_ok`.
-        s.acc_ok & st.initialized & dev.simd_gt(self.coef.acc_spike2)
+        (
+            s.acc_ok & st.initialized & dev.simd_gt(self.coef.acc_spike2),
+            dev,
+        )
     }
 
     /// Rest detection: deviation of gyro and accelerometer from their own low-pass, and a
@@ -236,33 +245,25 @@ impl<T: Lane> SqrtEskf<T> {
         };
         let a_i = st.strapdown.rotate(acc_raw);
         let rg = st.strapdown.to_rotation_matrix();
-        st.acc_lp1 = Vec3::select(
+        two_stage_lowpass(
+            k_acc,
             s.acc_ok,
-            st.acc_lp1 + (a_i - st.acc_lp1) * k_acc,
-            st.acc_lp1,
+            a_i,
+            &rg,
+            &mut st.acc_lp1,
+            &mut st.acc_lp,
+            &mut st.rot_lp1,
+            &mut st.rot_lp,
         );
-        st.acc_lp = Vec3::select(
-            s.acc_ok,
-            st.acc_lp + (st.acc_lp1 - st.acc_lp) * k_acc,
-            st.acc_lp,
-        );
-        st.rot_lp1 =
-            Mat::from_fn(|i, j| st.rot_lp1.m[i][j] + (rg.m[i][j] - st.rot_lp1.m[i][j]) * k_acc);
-        st.rot_lp = Mat::from_fn(|i, j| {
-            st.rot_lp.m[i][j] + (st.rot_lp1.m[i][j] - st.rot_lp.m[i][j]) * k_acc
-        });
         tau
     }
 
     /// The horizontal rotation vector (earth frame, rad) that turns the low-passed specific
-    /// force, brought to the earth frame by `c`, onto up; false where it has no direction.
-    fn inclination_innovation(&self) -> ([T; 2], T::Mask) {
+    /// force `acc_lp` (`I` frame), brought to the earth frame by `c`, onto up; false where it
+    /// has no direction.
+    pub(super) fn inclination_innovation(&self, acc_lp: Vec3<T>) -> ([T; 2], T::Mask) {
         let (zero, one) = (T::zero(), T::one());
-        let (v, v_ok) = self
-            .state
-            .correction
-            .rotate(self.state.acc_lp)
-            .try_normalize();
+        let (v, v_ok) = self.state.correction.rotate(acc_lp).try_normalize();
         // Rotation vector turning v onto up: axis v × up = (v_y, −v_x, 0).
         let sxy = (v.x * v.x + v.y * v.y).sqrt();
         let angle = sxy.atan2(v.z);
@@ -326,10 +327,11 @@ impl<T: Lane> SqrtEskf<T> {
     fn correct_inclination(
         &mut self,
         s: &Screened<T>,
-        tau: T,
+        measured: &two_windows::InclinationMeasurement<T>,
         starting: T::Mask,
-        (eps, v_ok): ([T; 2], T::Mask),
     ) -> Correction<T> {
+        let (eps, v_ok) = measured.innovation;
+        let lag = &measured.lag;
         let zero = T::zero();
         let r_nominal = self.per_dt.r_acc;
         // Covariance matching: where the innovations have been larger than predicted, the
@@ -342,24 +344,20 @@ impl<T: Lane> SqrtEskf<T> {
             .min(T::from_f64(1000.0));
         let r_acc = T::select(adapt, r_nominal * scale, r_nominal);
         let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
-        let rc = self.state.correction.to_rotation_matrix();
-        let rbar = rc * self.state.rot_lp;
         let apply = s.acc_ok & v_ok;
         let row = |axis: usize| {
             let mut h = [zero; 6];
             h[axis] = T::one();
-            for k in 0..3 {
-                h[3 + k] = tau * rbar.m[axis][k];
-            }
+            h[3..].copy_from_slice(&lag.m[axis]);
             h
         };
         let (dx0, accepted0, alpha0) = self.scalar_update::<0>(row(0), eps[0], r_acc, gate, apply);
         let nu1 = eps[1] - dx0[1];
         let (dx1, accepted1, alpha1) = self.scalar_update::<1>(row(1), nu1, r_acc, gate, apply);
         // The model error's mean square (reported with the covariance): the innovation before
-        // this sample's correction, per axis.
+        // this sample's correction, per axis (see `inclination_measurement`).
         {
-            let e2 = (eps[0] * eps[0] + eps[1] * eps[1]) * T::from_f64(0.5);
+            let e2 = measured.model_error2;
             let k = self.per_dt.k_model;
             let m = self.state.innovation_ms;
             let learn = apply & !starting & e2.is_finite();
@@ -504,7 +502,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         let mut s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         // A spike is an unusable accelerometer sample from here on: every low-pass, detector
         // and correction below takes the accelerometer only where `acc_ok`.
-        let spike = self.acc_spike(&s);
+        let (spike, translation2) = self.acc_spike(&s);
         s.acc_ok &= !spike;
         self.rejections.gate(spike);
         self.per_dt.refresh(s.dt, &self.coef);
@@ -522,9 +520,9 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
-        let innovation = self.inclination_innovation();
-        self.detect_bias_step(&s, starting, innovation);
-        let mut correction = self.correct_inclination(&s, tau, starting, innovation);
+        let measured = self.inclination_measurement(&s, acc_raw, tau, (translation2, w, rest));
+        self.detect_bias_step(&s, starting, measured.innovation);
+        let mut correction = self.correct_inclination(&s, &measured, starting);
         self.correct_bias_at_rest(rest, &mut correction);
         self.inject(correction);
         if self.nine_d {

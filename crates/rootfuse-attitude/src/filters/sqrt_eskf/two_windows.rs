@@ -1,0 +1,183 @@
+//! The flagship's second accelerometer window: a longer low-pass beside the `tau_acc` one,
+//! and the weight that blends their inclination measurements.
+//!
+//! One time constant cannot serve both kinds of motion: sustained or repeated translation
+//! wants a long window (more of the motion acceleration averages out), fast rotation a short
+//! one (the gyroscope's scale-factor and misalignment errors build up inside the window, and
+//! the longer the window the more of them the lag term must carry). Which regime the sensor
+//! is in is read from a signal neither window produces: the ratio of the translation
+//! (`|a − â|`, the specific force against the short window's gravity estimate, m/s²) to the
+//! rotation rate (`|ω − b̂|`, rad/s), each low-passed over `window_tau`. The weight of the long
+//! window is `x⁴ / (1 + x⁴)`, `x = translation / (window_ratio · rotation)`; it moves on the
+//! scale of `window_tau`, so the blended measurement never switches quickly. Both windows'
+//! innovations and lag terms are blended with the same weight, so the lag row of `H` always
+//! matches what is measured. The derivation and the cross-validation are in docs/methods.md
+//! and docs/accuracy.md.
+
+use super::*;
+
+/// Floors of the two motion measures (m/s², rad/s): at rest and in slow motion both are
+/// noise, and their ratio is then held near `1 / window_ratio` instead of following it.
+const TRANSLATION_FLOOR: f64 = 0.05;
+const ROTATION_FLOOR: f64 = 0.05;
+
+impl<T: Lane> LongWindow<T> {
+    pub(super) fn new() -> Self {
+        let zero = T::zero();
+        Self {
+            acc_lp1: Vec3::new(zero, zero, T::one()),
+            acc_lp: Vec3::new(zero, zero, T::one()),
+            rot_lp1: Mat::identity(),
+            rot_lp: Mat::identity(),
+            translation: T::from_f64(TRANSLATION_FLOOR),
+            rotation: T::from_f64(ROTATION_FLOOR),
+        }
+    }
+}
+
+/// One step of the two-stage low-pass (two equal first-order stages of gain `k`) of the
+/// specific force `a_i` and the rotation `rg`, both in the `I` frame; the force only where
+/// `ok`. Both windows run it.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(super) fn two_stage_lowpass<T: Lane>(
+    k: T,
+    ok: T::Mask,
+    a_i: Vec3<T>,
+    rg: &Mat<T, 3, 3>,
+    acc_lp1: &mut Vec3<T>,
+    acc_lp: &mut Vec3<T>,
+    rot_lp1: &mut Mat<T, 3, 3>,
+    rot_lp: &mut Mat<T, 3, 3>,
+) {
+    *acc_lp1 = Vec3::select(ok, *acc_lp1 + (a_i - *acc_lp1) * k, *acc_lp1);
+    *acc_lp = Vec3::select(ok, *acc_lp + (*acc_lp1 - *acc_lp) * k, *acc_lp);
+    *rot_lp1 = Mat::from_fn(|i, j| rot_lp1.m[i][j] + (rg.m[i][j] - rot_lp1.m[i][j]) * k);
+    *rot_lp = Mat::from_fn(|i, j| rot_lp.m[i][j] + (rot_lp1.m[i][j] - rot_lp.m[i][j]) * k);
+}
+
+/// One sample's inclination measurement (see [`SqrtEskf::inclination_measurement`]).
+pub(super) struct InclinationMeasurement<T: Lane> {
+    /// The horizontal innovation (earth frame, rad) and the lanes where it has a direction.
+    pub innovation: ([T; 2], T::Mask),
+    /// The lag term of `H`, `τ·R̄` (rows: earth axes; columns: bias components), s.
+    pub lag: Mat<T, 3, 3>,
+    /// What the reported model error learns from, rad² per axis.
+    pub model_error2: T,
+}
+
+impl<T: Lane> SqrtEskf<T> {
+    /// Lanes that run two windows (`tau_acc_long > 0`).
+    pub(super) fn two_windows(&self) -> T::Mask {
+        self.coef.tau_acc_long.simd_gt(T::zero())
+    }
+
+    /// The long window's low-pass step (time constant `tau_acc_long`, ramped over the
+    /// start-up as the short one) and its motion measures: `translation2` is `|a − â|²`
+    /// (m/s², against the short window before this sample), `rate` the bias-corrected rate.
+    /// The measures learn only from usable samples and hold at rest. Returns the long
+    /// window's time constant, s.
+    pub(super) fn lowpass_long(
+        &mut self,
+        s: &Screened<T>,
+        acc_raw: Vec3<T>,
+        translation2: T,
+        rate: Vec3<T>,
+        rest: T::Mask,
+    ) -> T {
+        let ramp = (self.state.age / self.coef.startup_time).min(T::one());
+        let tau = self.coef.tau_acc_long * ramp;
+        let k = if ramp.simd_lt(T::one()).any() {
+            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+        } else {
+            self.per_dt.k_acc_long
+        };
+        let st = &mut self.state;
+        let a_i = st.strapdown.rotate(acc_raw);
+        let rg = st.strapdown.to_rotation_matrix();
+        let w = &mut st.long;
+        two_stage_lowpass(
+            k,
+            s.acc_ok,
+            a_i,
+            &rg,
+            &mut w.acc_lp1,
+            &mut w.acc_lp,
+            &mut w.rot_lp1,
+            &mut w.rot_lp,
+        );
+        let kw = self.per_dt.k_window;
+        let learn = s.acc_ok & !rest & translation2.is_finite();
+        let translation = translation2.sqrt().max(T::from_f64(TRANSLATION_FLOOR));
+        let rotation = rate.norm().max(T::from_f64(ROTATION_FLOOR));
+        w.translation = T::select(
+            learn,
+            w.translation + (translation - w.translation) * kw,
+            w.translation,
+        );
+        w.rotation = T::select(learn, w.rotation + (rotation - w.rotation) * kw, w.rotation);
+        tau
+    }
+
+    /// The inclination innovation (horizontal, earth frame, rad; and the lanes where it has a
+    /// direction) and the lag term `τ·R̄` of `H` (rows: earth axes; columns: bias components;
+    /// s) of the `tau_acc` window, or, where a lane runs two, of the two windows blended by
+    /// [`long_window_weight`](Self::long_window_weight): the low-passed specific forces
+    /// (both along gravity within the motion left in them, so blending the vectors blends
+    /// the innovations to first order, with one innovation to compute) and the lag terms
+    /// `τ·LP(R)` alike. The motion measures are `translation2` (`|a − â|²`, (m/s²)²), the
+    /// bias-corrected `rate` (rad/s) and the lanes at `rest`.
+    ///
+    /// Also returns what the reported model error learns from (rad², per axis): the mean
+    /// square of the `tau_acc` window's innovation. With two windows that is the short
+    /// window's (its small-angle `sin²`), not the blend's: the blend leaves less motion in
+    /// the innovation but not less error in the estimate, so its innovation would make the
+    /// reported covariance overconfident exactly where the long window weighs.
+    pub(super) fn inclination_measurement(
+        &mut self,
+        s: &Screened<T>,
+        acc_raw: Vec3<T>,
+        tau: T,
+        (translation2, rate, rest): (T, Vec3<T>, T::Mask),
+    ) -> InclinationMeasurement<T> {
+        let on = self.two_windows();
+        let short_lag = Mat::from_fn(|i, k| tau * self.state.rot_lp.m[i][k]);
+        let (acc_lp, lag, short_error2) = if on.any() {
+            let tau_long = self.lowpass_long(s, acc_raw, translation2, rate, rest);
+            let weight = self.long_window_weight();
+            let st = &self.state;
+            let blend = |a: T, b: T| T::select(on, a + (b - a) * weight, a);
+            let acc_lp = Vec3::new(
+                blend(st.acc_lp.x, st.long.acc_lp.x),
+                blend(st.acc_lp.y, st.long.acc_lp.y),
+                blend(st.acc_lp.z, st.long.acc_lp.z),
+            );
+            let lag =
+                Mat::from_fn(|i, k| blend(short_lag.m[i][k], tau_long * st.long.rot_lp.m[i][k]));
+            let v = st.correction.rotate(st.acc_lp);
+            let sin2 = (v.x * v.x + v.y * v.y) / v.norm_squared();
+            (acc_lp, lag, Some(sin2 * T::from_f64(0.5)))
+        } else {
+            (self.state.acc_lp, short_lag, None)
+        };
+        let rc = self.state.correction.to_rotation_matrix();
+        let innovation = self.inclination_innovation(acc_lp);
+        let eps = innovation.0;
+        let error2 = (eps[0] * eps[0] + eps[1] * eps[1]) * T::from_f64(0.5);
+        InclinationMeasurement {
+            innovation,
+            lag: rc * lag,
+            model_error2: short_error2.map_or(error2, |e2| T::select(on, e2, error2)),
+        }
+    }
+
+    /// Weight of the long window, in `[0, 1]`: `x⁴ / (1 + x⁴)` of
+    /// `x = translation / (window_ratio · rotation)`; zero in lanes with one window.
+    pub(super) fn long_window_weight(&self) -> T {
+        let w = &self.state.long;
+        let x = w.translation / (self.coef.window_ratio * w.rotation);
+        let x2 = x * x;
+        let x4 = x2 * x2;
+        T::select(self.two_windows(), x4 / (T::one() + x4), T::zero())
+    }
+}
