@@ -148,8 +148,8 @@ def estimate_stream(source: Any, filter: str, **options: Any) -> pa.RecordBatchR
     ``source``: a pyarrow ``Table``, ``RecordBatch`` or ``RecordBatchReader``, any object
     with ``__arrow_c_stream__``, or the path (``str`` or ``os.PathLike``) of a Parquet or
     Arrow IPC fleet file, which is read in Rust exactly as ``rootfuse run`` reads it (the
-    fastest way in: nothing is materialised in Python first; ``FileNotFoundError`` or
-    ``OSError`` if it cannot be opened). ``options``: ``precision`` ("f64" default, or "f32"),
+    fastest way in: nothing is materialised in Python first; a file that cannot be opened
+    raises at the call, naming it, ``FileNotFoundError`` for a missing one). ``options``: ``precision`` ("f64" default, or "f32"),
     ``dof``, ``bias``, ``covariance``, ``flags``, ``device_params`` (per-device parameters:
     ``{device: {name: value}}`` or a table, see :func:`device_params_dict`; devices not in it
     run with the other options) and the filter's parameters. A bad row
