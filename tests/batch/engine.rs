@@ -387,13 +387,15 @@ fn covariance_and_flags_equal_scalar_runs() {
 
 /// Channels with their own parameters (`Batch::with_channel_specs`): each equals a scalar run
 /// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, with 6D and
-/// 9D channels interleaved (two structural classes).
+/// 9D channels interleaved (two structural classes). The flagship's lanes mix one and two
+/// accelerometer windows (`tau_acc_long` 0 beside 4 and 6 s), whose blend is a per-lane select.
 #[test]
 fn per_channel_specs_equal_scalar_runs() {
     let recs = recordings(11);
     for (name, key, values) in [
         ("mahony", "kp", [0.5, 2.0, 0.1]),
         ("ekf", "gyr_noise", [0.01, 0.05, 0.002]),
+        ("sqrt-eskf", "tau_acc_long", [0.0, 4.0, 6.0]),
     ] {
         // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
         let specs: Vec<FilterSpec> = (0..recs.len())
