@@ -20,7 +20,6 @@ mod update;
 mod set_state;
 // The second, longer accelerometer window and the weight that blends the two.
 mod two_windows;
-use two_windows::two_stage_lowpass;
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -147,15 +146,24 @@ lane_state! {
 }
 
 lane_state! {
-    /// The long window: the two-stage low-pass of the specific force and of the strapdown
-    /// rotation (as the `tau_acc` window, [`two_windows`]), and the two low-passed motion measures.
-    struct LongWindow<T: Lane> {
-        acc_lp1: Vec3<T>,
+    /// One accelerometer window: the two-stage low-pass (two equal first-order stages) of the
+    /// specific force and of the strapdown rotation, both in the `I` frame.
+    struct InertialLowpass<T: Lane> {
+        /// First stage of the force's low-pass.
+        acc1: Vec3<T>,
         /// Low-passed specific force in the `I` frame, m/s².
-        acc_lp: Vec3<T>,
-        rot_lp1: Mat<T, 3, 3>,
-        /// Low-passed sensor-to-`I` rotation (the lag term of `H`).
-        rot_lp: Mat<T, 3, 3>,
+        acc: Vec3<T>,
+        /// First stage of the rotation's low-pass.
+        rot1: Mat<T, 3, 3>,
+        /// Low-passed sensor-to-`I` rotation matrix (for the lag term of `H`).
+        rot: Mat<T, 3, 3>,
+    }
+}
+
+lane_state! {
+    /// The long window ([`two_windows`]) and the two low-passed motion measures that weigh it.
+    struct LongWindow<T: Lane> {
+        lowpass: InertialLowpass<T>,
         /// Low-passed `|a − â|`, m/s².
         translation: T,
         /// Low-passed `|ω − b̂|`, rad/s.
@@ -179,13 +187,8 @@ lane_state! {
         bias: Vec3<T>,
         /// Covariance factor `S` of `[δθ, δb]`: `P = S·Sᵀ`.
         factor: Mat<T, 6, 6>,
-        /// Low-passed specific force in the `I` frame, m/s².
-        acc_lp: Vec3<T>,
-        /// First stage of the two-stage low-pass.
-        acc_lp1: Vec3<T>,
-        rot_lp1: Mat<T, 3, 3>,
-        /// Low-passed sensor-to-`I` rotation matrix (for the lag term of `H`).
-        rot_lp: Mat<T, 3, 3>,
+        /// The `tau_acc` window.
+        window: InertialLowpass<T>,
         /// The second accelerometer window (`tau_acc_long`) and its motion measures.
         long: LongWindow<T>,
         /// Rest detection: low-passed gyro (rad/s) and accelerometer (m/s², sensor frame).
@@ -441,10 +444,7 @@ impl<T: Lane> State<T> {
             heading_offset_var: T::one(),
             bias: Vec3::zero(),
             factor: coef.initial_factor(),
-            acc_lp: Vec3::new(zero, zero, T::one()),
-            acc_lp1: Vec3::new(zero, zero, T::one()),
-            rot_lp1: Mat::identity(),
-            rot_lp: Mat::identity(),
+            window: InertialLowpass::new(),
             long: LongWindow::new(),
             rest_gyr_lp: Vec3::zero(),
             rest_acc_lp: Vec3::zero(),

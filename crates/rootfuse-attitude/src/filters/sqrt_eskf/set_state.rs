@@ -59,10 +59,8 @@ impl<T: Lane> SqrtEskf<T> {
         st.strapdown = Quat::select(running, moved, Quat::identity());
         st.correction = Quat::select(running, st.correction, q);
         let r = st.strapdown.to_rotation_matrix();
-        st.rot_lp = Mat::select(running, &r, &st.rot_lp);
-        st.rot_lp1 = Mat::select(running, &r, &st.rot_lp1);
-        st.long.rot_lp = Mat::select(running, &r, &st.long.rot_lp);
-        st.long.rot_lp1 = Mat::select(running, &r, &st.long.rot_lp1);
+        st.window.move_rotation(running, &r);
+        st.long.lowpass.move_rotation(running, &r);
         st.heading_offset = T::zero();
         st.preset |= !running;
     }

@@ -21,39 +21,53 @@ use super::*;
 const TRANSLATION_FLOOR: f64 = 0.05;
 const ROTATION_FLOOR: f64 = 0.05;
 
+impl<T: Lane> InertialLowpass<T> {
+    /// Before the first sample: a force along `+z` and the identity rotation.
+    pub(super) fn new() -> Self {
+        let up = Vec3::new(T::zero(), T::zero(), T::one());
+        Self {
+            acc1: up,
+            acc: up,
+            rot1: Mat::identity(),
+            rot: Mat::identity(),
+        }
+    }
+
+    /// Both stages seeded with the first sample's force `acc` and the identity rotation,
+    /// in the lanes `fresh`.
+    pub(super) fn seed(&mut self, fresh: T::Mask, acc: Vec3<T>) {
+        self.acc1 = Vec3::select(fresh, acc, self.acc1);
+        self.acc = Vec3::select(fresh, acc, self.acc);
+        self.rot1 = Mat::select(fresh, &Mat::identity(), &self.rot1);
+        self.rot = Mat::select(fresh, &Mat::identity(), &self.rot);
+    }
+
+    /// Both rotation stages set to `r`, in the lanes `moved` (the strapdown frame moved).
+    pub(super) fn move_rotation(&mut self, moved: T::Mask, r: &Mat<T, 3, 3>) {
+        self.rot1 = Mat::select(moved, r, &self.rot1);
+        self.rot = Mat::select(moved, r, &self.rot);
+    }
+
+    /// One step of gain `k` (each stage) with the specific force `a_i` and the rotation `rg`,
+    /// both in the `I` frame; the force only where `ok`.
+    #[inline]
+    pub(super) fn step(&mut self, k: T, ok: T::Mask, a_i: Vec3<T>, rg: &Mat<T, 3, 3>) {
+        self.acc1 = Vec3::select(ok, self.acc1 + (a_i - self.acc1) * k, self.acc1);
+        self.acc = Vec3::select(ok, self.acc + (self.acc1 - self.acc) * k, self.acc);
+        self.rot1 = Mat::from_fn(|i, j| self.rot1.m[i][j] + (rg.m[i][j] - self.rot1.m[i][j]) * k);
+        self.rot =
+            Mat::from_fn(|i, j| self.rot.m[i][j] + (self.rot1.m[i][j] - self.rot.m[i][j]) * k);
+    }
+}
+
 impl<T: Lane> LongWindow<T> {
     pub(super) fn new() -> Self {
-        let zero = T::zero();
         Self {
-            acc_lp1: Vec3::new(zero, zero, T::one()),
-            acc_lp: Vec3::new(zero, zero, T::one()),
-            rot_lp1: Mat::identity(),
-            rot_lp: Mat::identity(),
+            lowpass: InertialLowpass::new(),
             translation: T::from_f64(TRANSLATION_FLOOR),
             rotation: T::from_f64(ROTATION_FLOOR),
         }
     }
-}
-
-/// One step of the two-stage low-pass (two equal first-order stages of gain `k`) of the
-/// specific force `a_i` and the rotation `rg`, both in the `I` frame; the force only where
-/// `ok`. Both windows run it.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub(super) fn two_stage_lowpass<T: Lane>(
-    k: T,
-    ok: T::Mask,
-    a_i: Vec3<T>,
-    rg: &Mat<T, 3, 3>,
-    acc_lp1: &mut Vec3<T>,
-    acc_lp: &mut Vec3<T>,
-    rot_lp1: &mut Mat<T, 3, 3>,
-    rot_lp: &mut Mat<T, 3, 3>,
-) {
-    *acc_lp1 = Vec3::select(ok, *acc_lp1 + (a_i - *acc_lp1) * k, *acc_lp1);
-    *acc_lp = Vec3::select(ok, *acc_lp + (*acc_lp1 - *acc_lp) * k, *acc_lp);
-    *rot_lp1 = Mat::from_fn(|i, j| rot_lp1.m[i][j] + (rg.m[i][j] - rot_lp1.m[i][j]) * k);
-    *rot_lp = Mat::from_fn(|i, j| rot_lp.m[i][j] + (rot_lp1.m[i][j] - rot_lp.m[i][j]) * k);
 }
 
 /// One sample's inclination measurement (see [`SqrtEskf::inclination_measurement`]).
@@ -96,16 +110,7 @@ impl<T: Lane> SqrtEskf<T> {
         let a_i = st.strapdown.rotate(acc_raw);
         let rg = st.strapdown.to_rotation_matrix();
         let w = &mut st.long;
-        two_stage_lowpass(
-            k,
-            s.acc_ok,
-            a_i,
-            &rg,
-            &mut w.acc_lp1,
-            &mut w.acc_lp,
-            &mut w.rot_lp1,
-            &mut w.rot_lp,
-        );
+        w.lowpass.step(k, s.acc_ok, a_i, &rg);
         let kw = self.per_dt.k_window;
         let learn = s.acc_ok & !rest & translation2.is_finite();
         let translation = translation2.sqrt().max(T::from_f64(TRANSLATION_FLOOR));
@@ -141,24 +146,25 @@ impl<T: Lane> SqrtEskf<T> {
         (translation2, rate, rest): (T, Vec3<T>, T::Mask),
     ) -> InclinationMeasurement<T> {
         let on = self.two_windows();
-        let short_lag = Mat::from_fn(|i, k| tau * self.state.rot_lp.m[i][k]);
+        let short_lag = Mat::from_fn(|i, k| tau * self.state.window.rot.m[i][k]);
         let (acc_lp, lag, short_error2) = if on.any() {
             let tau_long = self.lowpass_long(s, acc_raw, translation2, rate, rest);
             let weight = self.long_window_weight();
             let st = &self.state;
             let blend = |a: T, b: T| T::select(on, a + (b - a) * weight, a);
             let acc_lp = Vec3::new(
-                blend(st.acc_lp.x, st.long.acc_lp.x),
-                blend(st.acc_lp.y, st.long.acc_lp.y),
-                blend(st.acc_lp.z, st.long.acc_lp.z),
+                blend(st.window.acc.x, st.long.lowpass.acc.x),
+                blend(st.window.acc.y, st.long.lowpass.acc.y),
+                blend(st.window.acc.z, st.long.lowpass.acc.z),
             );
-            let lag =
-                Mat::from_fn(|i, k| blend(short_lag.m[i][k], tau_long * st.long.rot_lp.m[i][k]));
-            let v = st.correction.rotate(st.acc_lp);
+            let lag = Mat::from_fn(|i, k| {
+                blend(short_lag.m[i][k], tau_long * st.long.lowpass.rot.m[i][k])
+            });
+            let v = st.correction.rotate(st.window.acc);
             let sin2 = (v.x * v.x + v.y * v.y) / v.norm_squared();
             (acc_lp, lag, Some(sin2 * T::from_f64(0.5)))
         } else {
-            (self.state.acc_lp, short_lag, None)
+            (self.state.window.acc, short_lag, None)
         };
         let rc = self.state.correction.to_rotation_matrix();
         let innovation = self.inclination_innovation(acc_lp);

@@ -102,15 +102,8 @@ impl<T: Lane> SqrtEskf<T> {
             let start = Quat::select(st.preset, integrated, levelled).normalize();
             st.correction = Quat::select(fresh, start, st.correction);
             st.strapdown = Quat::select(fresh, Quat::identity(), st.strapdown);
-            st.acc_lp = Vec3::select(fresh, acc_raw, st.acc_lp);
-            st.rot_lp = Mat::select(fresh, &Mat::identity(), &st.rot_lp);
-            st.acc_lp1 = Vec3::select(fresh, acc_raw, st.acc_lp1);
-            st.rot_lp1 = Mat::select(fresh, &Mat::identity(), &st.rot_lp1);
-            let long = &mut st.long;
-            long.acc_lp = Vec3::select(fresh, acc_raw, long.acc_lp);
-            long.acc_lp1 = Vec3::select(fresh, acc_raw, long.acc_lp1);
-            long.rot_lp = Mat::select(fresh, &Mat::identity(), &long.rot_lp);
-            long.rot_lp1 = Mat::select(fresh, &Mat::identity(), &long.rot_lp1);
+            st.window.seed(fresh, acc_raw);
+            st.long.lowpass.seed(fresh, acc_raw);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
             st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
             let (psi, psi_ok) = magnetic_heading_error(start, s.mag);
@@ -153,7 +146,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// (the translation the second window's weight reads).
     fn acc_spike(&self, s: &Screened<T>) -> (T::Mask, T) {
         let st = &self.state;
-        let expected = st.strapdown.rotate_inverse(st.acc_lp);
+        let expected = st.strapdown.rotate_inverse(st.window.acc);
         let dev = (s.acc * s.acc_norm - expected).norm_squared();
         // `>` is false for NaN, but a screened accelerometer is finite where `acc_ok`.
         (
@@ -245,16 +238,7 @@ impl<T: Lane> SqrtEskf<T> {
         };
         let a_i = st.strapdown.rotate(acc_raw);
         let rg = st.strapdown.to_rotation_matrix();
-        two_stage_lowpass(
-            k_acc,
-            s.acc_ok,
-            a_i,
-            &rg,
-            &mut st.acc_lp1,
-            &mut st.acc_lp,
-            &mut st.rot_lp1,
-            &mut st.rot_lp,
-        );
+        st.window.step(k_acc, s.acc_ok, a_i, &rg);
         tau
     }
 
