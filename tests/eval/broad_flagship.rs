@@ -197,3 +197,83 @@ fn model_error_makes_the_covariance_honest() {
         );
     }
 }
+
+/// The 9D heading's model error (`heading_model_error_scale`) on BROAD: the estimates are bit
+/// for bit those of `P` alone, and the mean share of samples inside the 95 % ellipsoid, with
+/// the 0.5° floor for the optical truth's own error, rises from 0.879 to 0.968 (the issue asks
+/// 0.90–0.98). Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
+/// error outside the ellipsoid at every sample with `P` alone and inside with the model error.
+#[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
+fn heading_model_error_covers_broad_with_the_floor() {
+    use rootfuse_attitude::OrientationFilter;
+    use rootfuse_eval::consistency::consistency;
+    let Some(dir) = broad_dir() else { return };
+    let recs: Vec<Recording> = read_dir(&dir).unwrap();
+    assert_eq!(recs.len(), 14, "the 14 shared BROAD trials");
+    let run = |rec: &Recording, scale: f64| {
+        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams {
+            heading_model_error_scale: scale,
+            ..SqrtEskfParams::default()
+        });
+        let (mut q, mut cov) = (Vec::new(), Vec::new());
+        for i in 0..rec.len() {
+            f.update(&rec.sample(i), rec.dt(i));
+            q.push(f.quat());
+            let a = f.attitude_covariance().expect("the flagship carries one");
+            cov.push([
+                a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
+            ]);
+        }
+        (q, cov)
+    };
+    let floor = 0.5_f64.to_radians();
+    let (mut with, mut without) = (Vec::new(), Vec::new());
+    for rec in &recs {
+        let truth = rec.truth.as_ref().expect("BROAD trials have truth");
+        let cover = |(q, c): &(Vec<_>, Vec<_>)| {
+            consistency(
+                q,
+                c,
+                truth,
+                rec.use_mask.as_deref(),
+                Alignment::NineD,
+                floor,
+                0.1,
+            )
+            .unwrap()
+            .coverage_total
+        };
+        let (modelled, alone) = (run(rec, 1.0), run(rec, 0.0));
+        assert!(
+            modelled
+                .0
+                .iter()
+                .zip(&alone.0)
+                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
+            "{}: estimates differ",
+            rec.name
+        );
+        with.push(cover(&modelled));
+        without.push(cover(&alone));
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (with_mean, without_mean) = (mean(&with), mean(&without));
+    eprintln!(
+        "BROAD 9D coverage with the 0.5° floor: {with_mean:.3} (model error), {without_mean:.3} (P alone)"
+    );
+    let i27 = recs.iter().position(|r| r.name.starts_with("27_")).unwrap();
+    assert!(
+        (0.95..=0.98).contains(&with_mean) && without_mean < 0.89,
+        "coverage {with_mean:.3} with the heading model error, {without_mean:.3} without"
+    );
+    assert!(
+        with[i27] > 0.95 && without[i27] < 0.05,
+        "trial 27: {:.2} with, {:.2} without",
+        with[i27],
+        without[i27]
+    );
+}

@@ -64,6 +64,16 @@ params! {
         model_error_scale: f64 = 2.0, "1", [0.0, 1e3];
         /// Time constant of that running mean square, s.
         model_error_window: f64 = 1.0, "s", [0.0, 1e6];
+        /// 9D: the reported heading variance adds this multiple of the running mean square
+        /// (time constant `model_error_window`) of the magnetic heading innovation (rad²): a
+        /// field distorted by the sensor's own iron turns with the sensor, so the heading it
+        /// gives disagrees with the gyroscope's as the sensor turns, an error `P`'s white
+        /// noise does not model (on BROAD 27, a phone's vibration motor beside the sensor,
+        /// `P` alone puts a 5–8° heading error outside its 95 % ellipsoid at every sample).
+        /// Report only, like `model_error_scale`; the smoother's passes leave it out
+        /// ([`SqrtEskfParams::for_smoothing`]). 1 is the mean square itself
+        /// (`docs/accuracy.md`).
+        heading_model_error_scale: f64 = 1.0, "1", [0.0, 1e3];
         /// Offline only (the forward–backward smoother, [`SqrtEskfParams::for_smoothing`]):
         /// both passes run with `tau_acc` and `tau_acc_long` times this. Each pass's low-pass
         /// lag is cancelled by the other's, so offline longer time constants remove more
@@ -208,6 +218,9 @@ lane_state! {
         /// Running mean square of the inclination innovation (rad², per axis), time constant
         /// `model_error_window`: the model error the covariance reports beside `P`.
         innovation_ms: T,
+        /// Running mean square of the magnetic heading innovation (rad², 9D), time constant
+        /// `model_error_window`.
+        heading_innovation_ms: T,
         /// A gyro-bias step was detected by the last sample: the next time update re-inflates
         /// the bias covariance.
         bias_step: T::Mask,
@@ -241,6 +254,7 @@ lane_state! {
         acc_adapt_window: T,
         model_error_scale: T,
         model_error_window: T,
+        heading_model_error_scale: T,
         /// `acc_spike²`, (m/s²)².
         acc_spike2: T,
         acc_reject_time: T,
@@ -271,19 +285,26 @@ lane_state! {
 
 impl SqrtEskfParams {
     /// The parameters each pass of the offline smoother runs with: both accelerometer time
-    /// constants (`tau_acc`, `tau_acc_long`) scaled by `smoothing_tau_scale`, everything else
-    /// as given.
+    /// constants (`tau_acc`, `tau_acc_long`) scaled by `smoothing_tau_scale`, no heading
+    /// model error (`heading_model_error_scale` 0), everything else as given.
+    ///
+    /// The heading model error is left out because the passes' reported covariances are the
+    /// smoother's weights: an error term both passes share flattens the weights toward equal
+    /// and hides which pass has just had its heading corrected (BROAD 9D offline 1.70° without
+    /// it, 1.87° with it; `docs/accuracy.md`).
     ///
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
     /// let p = SqrtEskfParams::default();
     /// assert_eq!(p.for_smoothing().tau_acc, p.tau_acc * p.smoothing_tau_scale);
     /// assert_eq!(p.for_smoothing().tau_acc_long, p.tau_acc_long * p.smoothing_tau_scale);
+    /// assert_eq!(p.for_smoothing().heading_model_error_scale, 0.0);
     /// ```
     pub fn for_smoothing(&self) -> Self {
         Self {
             tau_acc: self.tau_acc * self.smoothing_tau_scale,
             tau_acc_long: self.tau_acc_long * self.smoothing_tau_scale,
+            heading_model_error_scale: 0.0,
             ..self.clone()
         }
     }
@@ -303,6 +324,7 @@ impl<T: Lane> Coefficients<T> {
             acc_adapt_window: p.coef(|p| p.acc_adapt_window),
             model_error_scale: p.coef(|p| p.model_error_scale),
             model_error_window: p.coef(|p| p.model_error_window),
+            heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
             acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
             acc_reject_time: p.coef(|p| p.acc_reject_time),
             startup_time: p.coef(|p| p.startup_time.max(1e-6)),
@@ -454,6 +476,7 @@ impl<T: Lane> State<T> {
             innovation_mean_y: zero,
             innovation_nis: T::one(),
             innovation_ms: zero,
+            heading_innovation_ms: zero,
             bias_step: <T::Mask as Mask>::splat(false),
             age: zero,
             field: FieldReference {
@@ -552,7 +575,8 @@ impl<T: Lane> State<T> {
 /// - `bias` is the gyro-bias estimate;
 /// - `attitude_covariance` is the 3×3 attitude covariance above (its inclination block includes
 ///   a model error term, `model_error_scale` times the running mean square of the inclination
-///   innovation); `covariance_factor` is `S` and `covariance` is `P = S·Sᵀ` of `[δθ, δb]`;
+///   innovation, and in 9D its heading variance `heading_model_error_scale` times that of the
+///   magnetic heading innovation); `covariance_factor` is `S` and `covariance` is `P = S·Sᵀ` of `[δθ, δb]`;
 /// - `reset` returns to the state of a new filter with the same parameters;
 /// - `set_quat(q, sigma)` and `set_bias(b, sigma)` set the orientation or the bias, with its
 ///   standard deviation when `sigma` is given (out-of-range values are refused with a
@@ -655,7 +679,8 @@ impl<T: Lane> SqrtEskf<T> {
                 a.m[i][2] = T::zero();
                 a.m[2][i] = T::zero();
             }
-            a.m[2][2] = self.state.heading_offset_var;
+            a.m[2][2] = self.state.heading_offset_var
+                + self.state.heading_innovation_ms * self.coef.heading_model_error_scale;
         }
         let e = self.state.innovation_ms * self.coef.model_error_scale;
         a.m[0][0] += e;

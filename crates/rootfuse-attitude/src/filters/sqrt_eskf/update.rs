@@ -459,6 +459,8 @@ impl<T: Lane> SqrtEskf<T> {
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
         let apply = use_mag & psi_ok & !fresh;
+        let m = st.heading_innovation_ms;
+        st.heading_innovation_ms = T::select(apply, m + (psi * psi - m) * self.per_dt.k_model, m);
         st.heading_offset = T::select(
             apply,
             (st.heading_offset + k * psi).wrap_pi(),
