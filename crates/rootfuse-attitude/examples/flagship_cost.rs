@@ -4,10 +4,10 @@
 //!
 //! ```sh
 //! cargo build --release -p rootfuse-attitude --example flagship_cost
-//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER]
+//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF]
 //! ```
 //! FILTER is `sqrt-eskf` (the default), `mahony`, `madgwick` or `complementary`, each with its
-//! default parameters (9D).
+//! default parameters; DOF is 9 (the default) or 6.
 //! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (286 Hz like BROAD):
 //! rests of 4 s between 10 s of rotation about a wandering axis, gravity and a dipping field
 //! rotated into the sensor frame, plus a little deterministic noise; every lane runs the same
@@ -21,7 +21,7 @@ use rootfuse_attitude::filters::{
     Complementary, ComplementaryParams, Madgwick, MadgwickParams, Mahony, MahonyParams, SqrtEskf,
     SqrtEskfParams,
 };
-use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Vec3};
+use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Quat, Vec3};
 use rootfuse_lane::wide;
 use std::time::Instant;
 
@@ -62,19 +62,37 @@ fn motion(n: usize) -> Vec<ImuSample<f64>> {
         .collect()
 }
 
-fn run<T: Lane>(data: &[ImuSample<f64>], passes: usize, jitter: f64, filter: &str) -> (f64, f64) {
+fn run<T: Lane>(
+    data: &[ImuSample<f64>],
+    passes: usize,
+    jitter: f64,
+    filter: &str,
+    dof: Dof,
+) -> (f64, f64) {
     match filter {
         "mahony" => run_filter(data, passes, jitter, || {
-            Mahony::<T>::new(&MahonyParams::default())
+            Mahony::<T>::new(&MahonyParams {
+                dof,
+                ..Default::default()
+            })
         }),
         "madgwick" => run_filter(data, passes, jitter, || {
-            Madgwick::<T>::new(&MadgwickParams::default())
+            Madgwick::<T>::new(&MadgwickParams {
+                dof,
+                ..Default::default()
+            })
         }),
         "complementary" => run_filter(data, passes, jitter, || {
-            Complementary::<T>::new(&ComplementaryParams::default())
+            Complementary::<T>::new(&ComplementaryParams {
+                dof,
+                ..Default::default()
+            })
         }),
         _ => run_filter(data, passes, jitter, || {
-            SqrtEskf::<T>::new(&SqrtEskfParams::default())
+            SqrtEskf::<T>::new(&SqrtEskfParams {
+                dof,
+                ..Default::default()
+            })
         }),
     }
 }
@@ -122,7 +140,7 @@ fn run_filter<T: Lane, F: OrientationFilter<T>>(
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER]";
+    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF]";
     let mode = args.first().ok_or(usage)?;
     let number = |i: usize, default: usize| -> Result<usize, String> {
         args.get(i)
@@ -136,12 +154,17 @@ fn main() -> Result<(), String> {
     if !["sqrt-eskf", "mahony", "madgwick", "complementary"].contains(&filter) {
         return Err(usage.into());
     }
+    let dof = match args.get(5).map_or("9", String::as_str) {
+        "9" => Dof::Nine,
+        "6" => Dof::Six,
+        _ => return Err(usage.into()),
+    };
     let data = motion(samples);
     let (ns, checksum) = match mode.as_str() {
-        "f32" => run::<f32>(&data, passes, jitter, filter),
-        "f64" => run::<f64>(&data, passes, jitter, filter),
-        "f32x8" => run::<wide::f32x8>(&data, passes, jitter, filter),
-        "f64x4" => run::<wide::f64x4>(&data, passes, jitter, filter),
+        "f32" => run::<f32>(&data, passes, jitter, filter, dof),
+        "f64" => run::<f64>(&data, passes, jitter, filter, dof),
+        "f32x8" => run::<wide::f32x8>(&data, passes, jitter, filter, dof),
+        "f64x4" => run::<wide::f64x4>(&data, passes, jitter, filter, dof),
         // Only the input: the baseline subtracted from instruction counts.
         "none" => (0.0, std::hint::black_box(&data).len() as f64),
         _ => return Err(usage.into()),

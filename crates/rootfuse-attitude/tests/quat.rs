@@ -139,6 +139,26 @@ proptest! {
         prop_assert!(from_nalgebra(nr).angle_to(Quat::from_rotation_vector(rv)) < 1e-14);
     }
 
+    /// `renormalize` is `normalize` to rounding on products of unit quaternions, the only
+    /// inputs it is for, in f64 and f32 (chained products too: the error does not grow).
+    #[test]
+    fn renormalize_is_normalize_on_products(a in unit_quat(), b in unit_quat()) {
+        let p = a * b;
+        let d = p.renormalize().to_array().iter().zip(p.normalize().to_array())
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        prop_assert!(d <= 4.0 * f64::EPSILON, "f64: {d:e}");
+        let (a32, b32) = (to_f32(a), to_f32(b));
+        let mut q = a32;
+        for _ in 0..1000 {
+            q = (q * b32).renormalize();
+        }
+        let n = q.norm_squared();
+        prop_assert!((n - 1.0).abs() <= 4.0 * f32::EPSILON, "f32 after 1000 products: |q|² = {n}");
+        let d32 = (a32 * b32).renormalize().to_array().iter().zip((a32 * b32).normalize().to_array())
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        prop_assert!(d32 <= 4.0 * f32::EPSILON, "f32: {d32:e}");
+    }
+
     /// Matrix ↔ quaternion ↔ Euler round trips, including near 180° and near gimbal lock.
     #[test]
     fn round_trips(q in unit_quat(), axis in vec3(1.0), delta in prop::sample::select(vec![0.0, 1e-12, 1e-8, 1e-5, 1e-3, 0.1]),

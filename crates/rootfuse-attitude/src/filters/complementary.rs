@@ -79,14 +79,14 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
 
         let k_acc = self.k_acc.gain(s.dt);
         let tilt = tilt_correction(q.rotate(s.acc)) * k_acc;
-        let q_acc = (Quat::from_rotation_vector(tilt) * q).normalize();
+        let q_acc = (Quat::from_rotation_vector(tilt) * q).renormalize();
         q = Quat::select(s.acc_ok, q_acc, q);
 
         // 6D is the same for every lane and discards this correction: skipping it changes no bits.
         if self.nine_d {
             let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
             let k_mag = self.k_mag.gain(s.dt);
-            let q_mag = (Quat::from_heading(dpsi * k_mag) * q).normalize();
+            let q_mag = (Quat::from_heading(dpsi * k_mag) * q).renormalize();
             q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
         }
 

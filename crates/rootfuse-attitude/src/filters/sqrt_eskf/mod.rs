@@ -642,13 +642,13 @@ impl<T: Lane> SqrtEskf<T> {
 
     /// The 6D orientation (gravity and gyro only; heading drifts), sensor to earth.
     pub fn quat6(&self) -> Quat<T> {
-        (self.state.correction * self.state.strapdown).normalize()
+        (self.state.correction * self.state.strapdown).renormalize()
     }
 
     /// The 9D orientation (heading from the magnetometer), sensor to earth.
     pub fn quat9(&self) -> Quat<T> {
         let st = &self.state;
-        (Quat::from_heading(st.heading_offset) * st.correction * st.strapdown).normalize()
+        (Quat::from_heading(st.heading_offset) * st.correction * st.strapdown).renormalize()
     }
 
     /// The upper-triangular covariance factor `S` of the error

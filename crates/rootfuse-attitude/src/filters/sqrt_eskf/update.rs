@@ -74,7 +74,7 @@ impl<T: Lane> SqrtEskf<T> {
         let Correction { dx, accepted } = correction;
         let st = &mut self.state;
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
-        let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).normalize();
+        let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).renormalize();
         st.correction = Quat::select(accepted, corrected, st.correction);
         st.bias = Vec3::select(accepted, st.bias + Vec3::new(dx[3], dx[4], dx[5]), st.bias);
     }
@@ -188,7 +188,7 @@ impl<T: Lane> SqrtEskf<T> {
         let dt = s.dt;
         let w = s.gyr - self.state.bias;
         self.state.strapdown =
-            (self.state.strapdown * Quat::from_rotation_vector(w * dt)).normalize();
+            (self.state.strapdown * Quat::from_rotation_vector(w * dt)).renormalize();
         let r6 = (self.state.correction * self.state.strapdown).to_rotation_matrix();
 
         // A gate timing out means the model is wrong (wrong start, a bias step): re-inflate
