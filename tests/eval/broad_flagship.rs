@@ -149,8 +149,10 @@ fn model_error_makes_the_covariance_honest() {
     use rootfuse_attitude::OrientationFilter;
     use rootfuse_eval::consistency::consistency;
     let run = |rec: &Recording, scale: f64| {
+        // The inclination innovation's term alone: no scale-factor term beside it.
         let p = SqrtEskfParams {
             model_error_scale: scale,
+            gyr_scale_error: 0.0,
             ..SqrtEskfParams::default()
         };
         let mut f = SqrtEskf::<f64>::new(&p);
@@ -200,8 +202,8 @@ fn model_error_makes_the_covariance_honest() {
 
 /// The 9D heading's model error (`heading_model_error_scale`) on BROAD: the estimates are bit
 /// for bit those of `P` alone, and the mean share of samples inside the 95 % ellipsoid, with
-/// the 0.5° floor for the optical truth's own error, rises from 0.879 to 0.968 (the issue asks
-/// 0.90–0.98). Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
+/// the 0.5° floor for the optical truth's own error, rises from 0.886 to 0.977 (the issue asks
+/// 0.90–0.98; the other parameters the defaults). Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
 /// error outside the ellipsoid at every sample with `P` alone and inside with the model error.
 #[test]
 #[cfg_attr(
@@ -267,7 +269,7 @@ fn heading_model_error_covers_broad_with_the_floor() {
     );
     let i27 = recs.iter().position(|r| r.name.starts_with("27_")).unwrap();
     assert!(
-        (0.95..=0.98).contains(&with_mean) && without_mean < 0.89,
+        (0.95..=0.98).contains(&with_mean) && without_mean < 0.9,
         "coverage {with_mean:.3} with the heading model error, {without_mean:.3} without"
     );
     assert!(
@@ -275,5 +277,56 @@ fn heading_model_error_covers_broad_with_the_floor() {
         "trial 27: {:.2} with, {:.2} without",
         with[i27],
         without[i27]
+    );
+}
+
+/// The gyroscope scale-factor model error (`gyr_scale_error`) on the simulated fast rotation,
+/// whose IMU has a 0.3 % scale-factor and 0.1 % misalignment error: with its own value
+/// (0.003) the 95 % ellipse holds the inclination error at 0.96 of the samples (3 seeds,
+/// 60 s at 100 Hz, 9D), with 0 at 0.54; the estimates are bit for bit the same.
+#[test]
+fn scale_factor_model_error_covers_fast_rotation() {
+    use rootfuse_attitude::OrientationFilter;
+    use rootfuse_eval::consistency::consistency;
+    let run = |rec: &Recording, sf: f64| {
+        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams {
+            gyr_scale_error: sf,
+            ..SqrtEskfParams::default()
+        });
+        let (mut q, mut cov) = (Vec::new(), Vec::new());
+        for i in 0..rec.len() {
+            f.update(&rec.sample(i), rec.dt(i));
+            q.push(f.quat());
+            let a = f.attitude_covariance().expect("the flagship carries one");
+            cov.push([
+                a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
+            ]);
+        }
+        (q, cov)
+    };
+    let (mut with, mut without) = (0.0, 0.0);
+    for seed in 0..3 {
+        let rec = rootfuse_eval::sim::scenario("fast-rotation", seed, 60.0, 100.0).unwrap();
+        let truth = rec.truth.as_ref().unwrap();
+        let (q1, c1) = run(&rec, 0.003);
+        let (q0, c0) = run(&rec, 0.0);
+        assert!(
+            q1.iter()
+                .zip(&q0)
+                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
+            "estimates differ"
+        );
+        let cover = |q: &[_], c: &[_]| {
+            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
+                .unwrap()
+                .coverage_inclination
+        };
+        with += cover(&q1, &c1) / 3.0;
+        without += cover(&q0, &c0) / 3.0;
+    }
+    eprintln!("fast-rotation inclination coverage {with:.3} (0.003), {without:.3} (0)");
+    assert!(
+        (0.93..=0.99).contains(&with) && without < 0.6,
+        "coverage {with:.3} with the scale-factor model error, {without:.3} without"
     );
 }

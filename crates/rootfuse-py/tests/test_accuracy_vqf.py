@@ -80,10 +80,10 @@ def test_broad_beside_vqf(broad_dir):
 
 def test_broad_covariance_coverage(broad_dir):
     # Mean over the 14 trials of the share of samples inside the 95 % ellipsoid (first 10 %
-    # of each trial skipped). Measured: 9D total 0.871, with a 0.5° floor for the optical
-    # truth's own error 0.968 (the goal is 0.90-0.98; 0.879 with P alone on the heading,
-    # heading_model_error_scale = 0), inclination with the floor 0.957; 6D total with the
-    # floor 0.962.
+    # of each trial skipped). Measured: 9D total 0.910, with a 0.5° floor for the optical
+    # truth's own error 0.977 (the goal is 0.90-0.98; 0.886 with P alone on the heading,
+    # heading_model_error_scale = 0), inclination with the floor 0.967; 6D total with the
+    # floor 0.971.
     files = sorted(p for p in pathlib.Path(broad_dir).glob("*.csv") if p.name[:2].isdigit())
     assert len(files) == 14
     cover = {}
@@ -102,7 +102,7 @@ def test_broad_covariance_coverage(broad_dir):
                 )
                 cover[dof, floor].append((c["coverage_total"], c["coverage_inclination"]))
     mean = {k: np.mean(v, axis=0) for k, v in cover.items()}
-    assert 0.86 <= mean[9, 0.0][0] <= 0.89, mean[9, 0.0]
+    assert 0.89 <= mean[9, 0.0][0] <= 0.93, mean[9, 0.0]
     assert 0.95 <= mean[9, 0.5][0] <= 0.98, mean[9, 0.5]
     assert 0.95 <= mean[9, 0.5][1] <= 0.98, mean[9, 0.5]
     assert 0.95 <= mean[6, 0.5][0] <= 0.98, mean[6, 0.5]

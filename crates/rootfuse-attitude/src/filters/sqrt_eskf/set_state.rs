@@ -39,6 +39,7 @@ impl<T: Lane> SqrtEskf<T> {
                 st.heading_offset_var = sigma * sigma;
                 st.innovation_ms = T::zero();
                 st.heading_innovation_ms = T::zero();
+                st.scale_error2 = T::zero();
                 st.preset_covariance |= !st.initialized;
             }
             // A plain preset of a filter that has not started starts from the initial

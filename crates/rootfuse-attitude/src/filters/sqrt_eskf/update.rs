@@ -346,6 +346,9 @@ impl<T: Lane> SqrtEskf<T> {
             let m = self.state.innovation_ms;
             let learn = apply & !starting & e2.is_finite();
             self.state.innovation_ms = T::select(learn, m + (e2 - m) * k, m);
+            let c = &self.coef;
+            let sf = c.gyr_scale_error * self.state.long.rotation * c.tau_acc;
+            self.state.scale_error2 = T::select(learn, sf * sf, self.state.scale_error2);
         }
         if adapt.any() {
             // Each innovation against its variance predicted with the nominal noise.
