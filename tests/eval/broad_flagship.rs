@@ -49,6 +49,27 @@ fn total(rec: &Recording, dof: u8, f32_lanes: bool) -> f64 {
         .total
 }
 
+/// The flagship (f64) over `rec`: its estimate and reported attitude covariance (upper
+/// triangle, row by row) after every sample.
+#[allow(clippy::type_complexity)]
+fn with_covariance(
+    rec: &Recording,
+    params: &SqrtEskfParams,
+) -> (Vec<rootfuse_attitude::Quat<f64>>, Vec<[f64; 6]>) {
+    use rootfuse_attitude::OrientationFilter;
+    let mut f = SqrtEskf::<f64>::new(params);
+    let (mut q, mut cov) = (Vec::new(), Vec::new());
+    for i in 0..rec.len() {
+        f.update(&rec.sample(i), rec.dt(i));
+        q.push(f.quat());
+        let a = f.attitude_covariance().expect("the flagship carries one");
+        cov.push([
+            a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
+        ]);
+    }
+    (q, cov)
+}
+
 #[test]
 #[cfg_attr(
     not(broad_data),
@@ -146,26 +167,17 @@ fn covariance_matching_helps_the_pendulum_and_leaves_broad_alone() {
 /// 0.47 / 5.2, 0.45 / 8.9 (docs/accuracy.md).
 #[test]
 fn model_error_makes_the_covariance_honest() {
-    use rootfuse_attitude::OrientationFilter;
     use rootfuse_eval::consistency::consistency;
     let run = |rec: &Recording, scale: f64| {
         // The inclination innovation's term alone: no scale-factor term beside it.
-        let p = SqrtEskfParams {
-            model_error_scale: scale,
-            gyr_scale_error: 0.0,
-            ..SqrtEskfParams::default()
-        };
-        let mut f = SqrtEskf::<f64>::new(&p);
-        let (mut q, mut cov) = (Vec::new(), Vec::new());
-        for i in 0..rec.len() {
-            f.update(&rec.sample(i), rec.dt(i));
-            q.push(f.quat());
-            let a = f.attitude_covariance().expect("the flagship carries one");
-            cov.push([
-                a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
-            ]);
-        }
-        (q, cov)
+        with_covariance(
+            rec,
+            &SqrtEskfParams {
+                model_error_scale: scale,
+                gyr_scale_error: 0.0,
+                ..SqrtEskfParams::default()
+            },
+        )
     };
     for (name, min_with, max_without) in [
         ("pendulum", 0.93, 0.6),
@@ -211,26 +223,18 @@ fn model_error_makes_the_covariance_honest() {
     ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
 )]
 fn heading_model_error_covers_broad_with_the_floor() {
-    use rootfuse_attitude::OrientationFilter;
     use rootfuse_eval::consistency::consistency;
     let Some(dir) = broad_dir() else { return };
     let recs: Vec<Recording> = read_dir(&dir).unwrap();
     assert_eq!(recs.len(), 14, "the 14 shared BROAD trials");
     let run = |rec: &Recording, scale: f64| {
-        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams {
-            heading_model_error_scale: scale,
-            ..SqrtEskfParams::default()
-        });
-        let (mut q, mut cov) = (Vec::new(), Vec::new());
-        for i in 0..rec.len() {
-            f.update(&rec.sample(i), rec.dt(i));
-            q.push(f.quat());
-            let a = f.attitude_covariance().expect("the flagship carries one");
-            cov.push([
-                a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
-            ]);
-        }
-        (q, cov)
+        with_covariance(
+            rec,
+            &SqrtEskfParams {
+                heading_model_error_scale: scale,
+                ..SqrtEskfParams::default()
+            },
+        )
     };
     let floor = 0.5_f64.to_radians();
     let (mut with, mut without) = (Vec::new(), Vec::new());
@@ -286,23 +290,15 @@ fn heading_model_error_covers_broad_with_the_floor() {
 /// 60 s at 100 Hz, 9D), with 0 at 0.54; the estimates are bit for bit the same.
 #[test]
 fn scale_factor_model_error_covers_fast_rotation() {
-    use rootfuse_attitude::OrientationFilter;
     use rootfuse_eval::consistency::consistency;
     let run = |rec: &Recording, sf: f64| {
-        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams {
-            gyr_scale_error: sf,
-            ..SqrtEskfParams::default()
-        });
-        let (mut q, mut cov) = (Vec::new(), Vec::new());
-        for i in 0..rec.len() {
-            f.update(&rec.sample(i), rec.dt(i));
-            q.push(f.quat());
-            let a = f.attitude_covariance().expect("the flagship carries one");
-            cov.push([
-                a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
-            ]);
-        }
-        (q, cov)
+        with_covariance(
+            rec,
+            &SqrtEskfParams {
+                gyr_scale_error: sf,
+                ..SqrtEskfParams::default()
+            },
+        )
     };
     let (mut with, mut without) = (0.0, 0.0);
     for seed in 0..3 {
