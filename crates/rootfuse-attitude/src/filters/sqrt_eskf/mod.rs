@@ -588,10 +588,12 @@ impl<T: Lane> State<T> {
 /// - `quat` is the estimate (`q9` in 9D, `q6` in 6D); `quat6` and `quat9` give both, and
 ///   `heading_offset` gives `δ`;
 /// - `bias` is the gyro-bias estimate;
-/// - `attitude_covariance` is the 3×3 attitude covariance above (its inclination block includes
-///   a model error term, `model_error_scale` times the running mean square of the inclination
-///   innovation, and in 9D its heading variance `heading_model_error_scale` times that of the
-///   magnetic heading innovation); `covariance_factor` is `S` and `covariance` is `P = S·Sᵀ` of `[δθ, δb]`;
+/// - `attitude_covariance` is the 3×3 attitude covariance above, with model error terms: its
+///   inclination block adds `model_error_scale` times the running mean square of the
+///   inclination innovation and the drift of a gyroscope scale-factor error
+///   (`gyr_scale_error`), and in 9D its heading variance adds `heading_model_error_scale`
+///   times the running mean square of the magnetic heading innovation; `covariance_factor` is
+///   `S` and `covariance` is `P = S·Sᵀ` of `[δθ, δb]`;
 /// - `reset` returns to the state of a new filter with the same parameters;
 /// - `set_quat(q, sigma)` and `set_bias(b, sigma)` set the orientation or the bias, with its
 ///   standard deviation when `sigma` is given (out-of-range values are refused with a
