@@ -70,6 +70,36 @@ fn with_covariance(
     (q, cov)
 }
 
+/// The two estimates agree bit for bit at every sample.
+fn same_bits(a: &[rootfuse_attitude::Quat<f64>], b: &[rootfuse_attitude::Quat<f64>]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits))
+}
+
+/// The simulated scenario `name` (seeds 0–2, 60 s at 100 Hz, 9D) run with `with` and
+/// `without`, whose estimates must be the same bit for bit: the mean inclination coverage of
+/// the 95 % ellipse that each reports (first 10 % skipped, no floor).
+fn simulated_coverage(name: &str, with: &SqrtEskfParams, without: &SqrtEskfParams) -> (f64, f64) {
+    use rootfuse_eval::consistency::consistency;
+    let (mut a, mut b) = (0.0, 0.0);
+    for seed in 0..3 {
+        let rec = rootfuse_eval::sim::scenario(name, seed, 60.0, 100.0).unwrap();
+        let truth = rec.truth.as_ref().unwrap();
+        let ((q1, c1), (q0, c0)) = (with_covariance(&rec, with), with_covariance(&rec, without));
+        assert!(same_bits(&q1, &q0), "{name}: estimates differ");
+        let cover = |q: &[_], c: &[_]| {
+            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
+                .unwrap()
+                .coverage_inclination
+        };
+        a += cover(&q1, &c1) / 3.0;
+        b += cover(&q0, &c0) / 3.0;
+    }
+    (a, b)
+}
+
 #[test]
 #[cfg_attr(
     not(broad_data),
@@ -167,43 +197,18 @@ fn covariance_matching_helps_the_pendulum_and_leaves_broad_alone() {
 /// 0.47 / 5.2, 0.45 / 8.9 (docs/accuracy.md).
 #[test]
 fn model_error_makes_the_covariance_honest() {
-    use rootfuse_eval::consistency::consistency;
-    let run = |rec: &Recording, scale: f64| {
-        // The inclination innovation's term alone: no scale-factor term beside it.
-        with_covariance(
-            rec,
-            &SqrtEskfParams {
-                model_error_scale: scale,
-                gyr_scale_error: 0.0,
-                ..SqrtEskfParams::default()
-            },
-        )
+    // The inclination innovation's term alone: no scale-factor term beside it.
+    let params = |scale: f64| SqrtEskfParams {
+        model_error_scale: scale,
+        gyr_scale_error: 0.0,
+        ..SqrtEskfParams::default()
     };
     for (name, min_with, max_without) in [
         ("pendulum", 0.93, 0.6),
         ("translation", 0.9, 0.6),
         ("handheld-translation", 0.85, 0.6),
     ] {
-        let (mut with, mut without) = (0.0, 0.0);
-        for seed in 0..3 {
-            let rec = rootfuse_eval::sim::scenario(name, seed, 60.0, 100.0).unwrap();
-            let truth = rec.truth.as_ref().unwrap();
-            let (q2, c2) = run(&rec, 2.0);
-            let (q0, c0) = run(&rec, 0.0);
-            assert!(
-                q2.iter()
-                    .zip(&q0)
-                    .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
-                "{name}: estimates differ"
-            );
-            let cover = |q: &[_], c: &[_]| {
-                consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
-                    .unwrap()
-                    .coverage_inclination
-            };
-            with += cover(&q2, &c2) / 3.0;
-            without += cover(&q0, &c0) / 3.0;
-        }
+        let (with, without) = simulated_coverage(name, &params(2.0), &params(0.0));
         eprintln!("{name}: inclination coverage {with:.2} (model error), {without:.2} (P alone)");
         assert!(
             with >= min_with && without <= max_without,
@@ -255,11 +260,7 @@ fn heading_model_error_covers_broad_with_the_floor() {
         };
         let (modelled, alone) = (run(rec, 1.0), run(rec, 0.0));
         assert!(
-            modelled
-                .0
-                .iter()
-                .zip(&alone.0)
-                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
+            same_bits(&modelled.0, &alone.0),
             "{}: estimates differ",
             rec.name
         );
@@ -290,36 +291,11 @@ fn heading_model_error_covers_broad_with_the_floor() {
 /// 60 s at 100 Hz, 9D), with 0 at 0.54; the estimates are bit for bit the same.
 #[test]
 fn scale_factor_model_error_covers_fast_rotation() {
-    use rootfuse_eval::consistency::consistency;
-    let run = |rec: &Recording, sf: f64| {
-        with_covariance(
-            rec,
-            &SqrtEskfParams {
-                gyr_scale_error: sf,
-                ..SqrtEskfParams::default()
-            },
-        )
+    let params = |sf: f64| SqrtEskfParams {
+        gyr_scale_error: sf,
+        ..SqrtEskfParams::default()
     };
-    let (mut with, mut without) = (0.0, 0.0);
-    for seed in 0..3 {
-        let rec = rootfuse_eval::sim::scenario("fast-rotation", seed, 60.0, 100.0).unwrap();
-        let truth = rec.truth.as_ref().unwrap();
-        let (q1, c1) = run(&rec, 0.003);
-        let (q0, c0) = run(&rec, 0.0);
-        assert!(
-            q1.iter()
-                .zip(&q0)
-                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
-            "estimates differ"
-        );
-        let cover = |q: &[_], c: &[_]| {
-            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
-                .unwrap()
-                .coverage_inclination
-        };
-        with += cover(&q1, &c1) / 3.0;
-        without += cover(&q0, &c0) / 3.0;
-    }
+    let (with, without) = simulated_coverage("fast-rotation", &params(0.003), &params(0.0));
     eprintln!("fast-rotation inclination coverage {with:.3} (0.003), {without:.3} (0)");
     assert!(
         (0.93..=0.99).contains(&with) && without < 0.6,

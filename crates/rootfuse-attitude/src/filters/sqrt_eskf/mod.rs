@@ -231,7 +231,9 @@ lane_state! {
         /// Running mean square of the magnetic heading innovation (rad², 9D), time constant
         /// `model_error_window`.
         heading_innovation_ms: T,
-        /// `(gyr_scale_error · |ω| · tau_acc)²` at the last inclination update, rad².
+        /// `(gyr_scale_error · |ω| · tau_acc)²` at the last inclination update, rad². Kept,
+        /// not derived from `long.rotation` when reported, so that `set_quat` with a `sigma`
+        /// clears it with the other model errors (the rotation measure is not reset).
         scale_error2: T,
         /// A gyro-bias step was detected by the last sample: the next time update re-inflates
         /// the bias covariance.
