@@ -3,12 +3,15 @@
 //! do not depend on the thread count.
 use crate::common::same_bits;
 use rootfuse::batch::{
-    Batch, Channel, ChannelOutput, Columns, Precision, RejectionTotals, flag, run_recordings,
-    run_recordings_with, state_bytes_per_channel,
+    Batch, Channel, ChannelOutput, ChannelSource, Columns, Precision, RejectionTotals, fill_lanes,
+    flag, run_final_states, run_recordings, run_recordings_with, run_sources,
+    state_bytes_per_channel,
 };
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_eval::sim::{scenario, scenario_names};
+use rootfuse_lane::X2;
+use rootfuse_lane::wide::{f32x8, f64x4};
 
 /// One channel alone through the scalar filter, as `run_recordings` promises to reproduce.
 fn scalar_run<S: Lane + Into<f64>>(spec: &FilterSpec, rec: &Recording) -> ChannelOutput {
@@ -595,4 +598,119 @@ fn state_bytes_are_the_filters_own() {
         any_row.is_some_and(|l| l.contains(&format!("| {any} |"))),
         "AnyFilter row"
     );
+}
+
+/// One channel as `[x, y, z]` rows of `T` (6D data has NaN magnetometer rows), with its steps:
+/// a source that moves whole blocks through registers ([`fill_lanes`]).
+struct Rows<T> {
+    gyr: Vec<T>,
+    acc: Vec<T>,
+    mag: Vec<T>,
+    dt: Vec<f64>,
+}
+
+impl<T: Copy + Into<f64> + Sync> Rows<T> {
+    fn new(rec: &Recording, cast: impl Fn(f64) -> T) -> Self {
+        let rows = |v: &[Vec3<f64>]| v.iter().flat_map(|v| v.to_array()).map(&cast).collect();
+        let nan = vec![Vec3::new(f64::NAN, f64::NAN, f64::NAN); rec.len()];
+        Self {
+            gyr: rows(&rec.gyr),
+            acc: rows(&rec.acc),
+            mag: rows(rec.mag.as_deref().unwrap_or(&nan)),
+            dt: (0..rec.len()).map(|k| rec.dt(k)).collect(),
+        }
+    }
+}
+
+impl<T: Copy + Into<f64> + Sync> ChannelSource for Rows<T> {
+    fn len(&self) -> usize {
+        self.dt.len()
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        let v = |r: &[T]| Vec3::new(r[3 * i].into(), r[3 * i + 1].into(), r[3 * i + 2].into());
+        ImuSample::new(v(&self.gyr), v(&self.acc), v(&self.mag))
+    }
+    fn dt(&self, i: usize) -> f64 {
+        self.dt[i]
+    }
+    fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
+        let rows =
+            |field: fn(&Self) -> &[T]| -> Vec<&[T]> { lanes.iter().map(|s| field(s)).collect() };
+        assert!(fill_lanes(&rows(|s| &s.gyr), start, tile, |s| &mut s.gyr));
+        assert!(fill_lanes(&rows(|s| &s.acc), start, tile, |s| &mut s.acc));
+        assert!(fill_lanes(&rows(|s| &s.mag), start, tile, |s| &mut s.mag));
+        for (lane, source) in lanes.iter().enumerate() {
+            for (k, (_, dt)) in tile.iter_mut().enumerate() {
+                dt.set_lane(lane, <L::Scalar as Lane>::from_f64(source.dt[start + k]));
+            }
+        }
+    }
+}
+
+/// The same channel read lane by lane (the trait's defaults).
+struct LaneByLane<'a, T>(&'a Rows<T>);
+
+impl<T: Copy + Into<f64> + Sync> ChannelSource for LaneByLane<'_, T> {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn sample(&self, i: usize) -> ImuSample<f64> {
+        self.0.sample(i)
+    }
+    fn dt(&self, i: usize) -> f64 {
+        self.0.dt(i)
+    }
+}
+
+fn registers_equal_lane_by_lane<L: Lane, T: Copy + Into<f64> + Sync>(
+    recs: &[Recording],
+    cast: impl Fn(f64) -> T,
+) {
+    let rows: Vec<Rows<T>> = recs.iter().map(|r| Rows::new(r, &cast)).collect();
+    let lane_by_lane: Vec<LaneByLane<'_, T>> = rows.iter().map(LaneByLane).collect();
+    for (name, dof) in [("mahony", 6), ("sqrt-eskf", 9)] {
+        let mut spec = FilterSpec::new(name).unwrap();
+        spec.set_dof(crate::common::dof(dof)).unwrap();
+        let what = format!("{name} {dof}D, {} lanes", L::LANES);
+        // Chunks of the sources themselves.
+        let fast = run_sources::<L, _>(&spec, &rows);
+        let slow = run_sources::<L, _>(&spec, &lane_by_lane);
+        for (c, (a, b)) in fast.iter().zip(&slow).enumerate() {
+            assert_same(a, b, &format!("{what}, channel {c}"));
+        }
+        // Chunks regrouped by spec (sources by reference).
+        let specs = vec![spec.clone(); rows.len()];
+        let precision = if L::EPSILON > 1e-10 {
+            Precision::F32
+        } else {
+            Precision::F64
+        };
+        let fast = run_final_states(&specs, &rows, precision).unwrap();
+        let slow = run_final_states(&specs, &lane_by_lane, precision).unwrap();
+        for (c, (a, b)) in fast.iter().zip(&slow).enumerate() {
+            let same = a
+                .quat
+                .to_array()
+                .into_iter()
+                .zip(b.quat.to_array())
+                .all(|(x, y)| same_bits(x, y));
+            assert!(
+                same && a.rejections == b.rejections,
+                "{what}, final state of channel {c}"
+            );
+        }
+    }
+}
+
+/// `fill_lanes` (whole blocks through registers, the rest lane by lane) hands the filters
+/// exactly the tiles that lane-by-lane reads do: 37 channels (two full chunks of 16 and a
+/// tail), ragged lengths (so full chunks run out mid-tile), bad data, float32 and float64 rows.
+#[test]
+fn rows_through_registers_equal_lane_by_lane() {
+    let recs = recordings(37);
+    registers_equal_lane_by_lane::<X2<f32x8>, f32>(&recs, |x| x as f32);
+    registers_equal_lane_by_lane::<X2<f32x8>, f64>(&recs, |x| x);
+    registers_equal_lane_by_lane::<f32x8, f32>(&recs, |x| x as f32);
+    registers_equal_lane_by_lane::<f64x4, f64>(&recs, |x| x);
+    registers_equal_lane_by_lane::<f64x4, f32>(&recs, |x| x as f32);
 }

@@ -95,6 +95,94 @@ pub trait ChannelSource: Sync {
             dt.set_lane(lane, <L::Scalar as Lane>::from_f64(self.dt(start + k)));
         }
     }
+
+    /// Writes samples `start .. start + tile.len()` of every channel of `lanes` (channel `i`
+    /// into lane `i`; every one has them) into `tile`, exactly as
+    /// [`read_into`](Self::read_into) lane by lane would: the default does that. Sources over
+    /// contiguous arrays override it to move whole blocks of samples through registers
+    /// ([`fill_lanes`]), which is where a cheap filter's time goes otherwise. The engine
+    /// calls it for a full chunk (`lanes.len() == L::LANES`, at most [`MAX_LANES`]) whose
+    /// channels all have the tile's steps.
+    fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)])
+    where
+        Self: Sized,
+    {
+        for (lane, source) in lanes.iter().enumerate() {
+            source.read_into(start, lane, tile);
+        }
+    }
+}
+
+/// Most lanes of a chunk that [`ChannelSource::read_lanes`] and [`fill_lanes`] take at once
+/// (the widest lane type, `X2<f32x8>`, has 16).
+pub const MAX_LANES: usize = 16;
+
+/// Writes samples `start .. start + tile.len()` of `L::LANES` channels into the vector `field`
+/// picks in each tile entry, channel `i` into lane `i`, each value rounded to the lane's
+/// precision once (`f32 → f64 → f32` is exact): `rows[i]` is channel `i`'s `[x, y, z]` rows.
+/// Whole blocks of `LANES` steps are loaded one vector per channel and transposed in
+/// registers ([`Lane::transpose_lanes`]); the steps after the last whole block are written
+/// lane by lane. Returns `false`, writing nothing, unless there are `LANES` channels
+/// (at most [`MAX_LANES`]) each with at least `3 · (start + tile.len())` values.
+///
+/// ```
+/// use rootfuse_attitude::Lane;
+/// use rootfuse_batch::{fill_lanes, pad_sample};
+/// use rootfuse_lane::wide::f64x4;
+/// // Four channels of five samples; channel c's gyro x at step k is 10 c + k.
+/// let rows: Vec<Vec<f32>> = (0..4)
+///     .map(|c| (0..5).flat_map(|k| [(10 * c + k) as f32, 0.0, 0.0]).collect())
+///     .collect();
+/// let rows: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
+/// let mut tile = [(pad_sample::<f64x4>(), f64x4::zero()); 5];
+/// assert!(fill_lanes(&rows, 0, &mut tile, |s| &mut s.gyr));
+/// assert_eq!(tile[4].0.gyr.x.extract(2), 24.0);
+/// ```
+pub fn fill_lanes<T: Copy + Into<f64>, L: Lane>(
+    rows: &[&[T]],
+    start: usize,
+    tile: &mut [(ImuSample<L>, L)],
+    field: impl Fn(&mut ImuSample<L>) -> &mut Vec3<L>,
+) -> bool {
+    let n = L::LANES;
+    let end = 3 * (start + tile.len());
+    if n > MAX_LANES || rows.len() != n || rows.iter().any(|r| r.len() < end) {
+        return false;
+    }
+    let cast = |x: T| <L::Scalar as Lane>::from_f64(x.into());
+    let whole = tile.len() / n * n;
+    let mut block = [L::zero(); MAX_LANES];
+    let block = &mut block[..n];
+    for b0 in (0..whole).step_by(n) {
+        // The block's 3·n values of a channel, as three vectors: values c·n .. (c + 1)·n.
+        for c in 0..3 {
+            let first = 3 * (start + b0) + c * n;
+            for (v, r) in block.iter_mut().zip(rows) {
+                let r = &r[first..first + n];
+                *v = L::from_fn(|k| cast(r[k]));
+            }
+            L::transpose_lanes(block);
+            for (k, v) in block.iter().enumerate() {
+                let m = c * n + k;
+                let target = field(&mut tile[b0 + m / 3].0);
+                match m % 3 {
+                    0 => target.x = *v,
+                    1 => target.y = *v,
+                    _ => target.z = *v,
+                }
+            }
+        }
+    }
+    for (lane, r) in rows.iter().enumerate() {
+        for (k, (s, _)) in tile.iter_mut().enumerate().skip(whole) {
+            let i = 3 * (start + k);
+            let v = field(s);
+            v.x.set_lane(lane, cast(r[i]));
+            v.y.set_lane(lane, cast(r[i + 1]));
+            v.z.set_lane(lane, cast(r[i + 2]));
+        }
+    }
+    true
 }
 
 /// Most steps per tile of [`Chunk::run_sources`]: each channel of a chunk hands over up to
@@ -167,6 +255,16 @@ impl<S: ChannelSource> ChannelSource for &S {
     }
     fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
         (**self).read_into(start, lane, tile);
+    }
+    fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
+        let (Some(&&first), true) = (lanes.first(), lanes.len() <= MAX_LANES) else {
+            for (lane, source) in lanes.iter().enumerate() {
+                source.read_into(start, lane, tile);
+            }
+            return;
+        };
+        let inner: [&S; MAX_LANES] = core::array::from_fn(|i| lanes.get(i).map_or(first, |s| **s));
+        S::read_lanes(&inner[..lanes.len()], start, tile);
     }
 }
 
@@ -323,10 +421,16 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         let mut k0 = steps.start;
         while k0 < steps.end {
             let len = (steps.end - k0).min(tile_len);
-            for (i, src) in sources[..n].iter().enumerate() {
-                let m = src.len().saturating_sub(k0).min(len);
-                src.read_into(k0, i, &mut tile[..m]);
-                avail[i] = m;
+            if n == L::LANES && n <= MAX_LANES && sources[..n].iter().all(|s| s.len() >= k0 + len) {
+                let lanes: [&S; MAX_LANES] = core::array::from_fn(|i| &sources[i.min(n - 1)]);
+                S::read_lanes(&lanes[..n], k0, &mut tile[..len]);
+                avail.fill(len);
+            } else {
+                for (i, src) in sources[..n].iter().enumerate() {
+                    let m = src.len().saturating_sub(k0).min(len);
+                    src.read_into(k0, i, &mut tile[..m]);
+                    avail[i] = m;
+                }
             }
             // Every channel has every step of the tile up to the shortest one.
             let common = avail.iter().copied().min().unwrap_or(0);

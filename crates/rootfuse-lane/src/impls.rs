@@ -55,6 +55,13 @@ macro_rules! simd_lane {
                 }
             }
             #[inline]
+            fn transpose_lanes(block: &mut [Self]) {
+                let square: &mut [$t; $n] = block
+                    .try_into()
+                    .expect("transpose_lanes: the block must hold LANES vectors");
+                *square = $t::transpose(*square);
+            }
+            #[inline]
             fn sqrt(self) -> Self {
                 $t::sqrt(self)
             }
@@ -188,6 +195,13 @@ macro_rules! scalar_lane {
                 if lane == 0 {
                     *self = x;
                 }
+            }
+            #[inline]
+            fn transpose_lanes(block: &mut [Self]) {
+                assert!(
+                    block.len() == 1,
+                    "transpose_lanes: the block must hold LANES vectors"
+                );
             }
             #[inline]
             fn sqrt(self) -> Self {

@@ -175,6 +175,22 @@ pub trait Lane:
     /// assert_eq!((v.extract(2), v.extract(3)), (1.0, 5.0));
     /// ```
     fn set_lane(&mut self, lane: usize, x: Self::Scalar);
+    /// Transposes `block`, `LANES` vectors seen as a square matrix, in place: afterwards lane
+    /// `i` of `block[j]` holds what lane `j` of `block[i]` held. The batch engine loads
+    /// `LANES` consecutive values of each of `LANES` channels (one vector per channel) and
+    /// transposes them into one vector per value (lane `i` from channel `i`) in registers,
+    /// instead of one scalar store per value ([`set_lane`](Lane::set_lane)).
+    ///
+    /// # Panics
+    /// If `block.len() != LANES` (a caller's error, never data).
+    ///
+    /// ```
+    /// use rootfuse_lane::{Lane, wide::f64x4};
+    /// let mut b: Vec<f64x4> = (0..4).map(|i| f64x4::from_fn(|j| (10 * i + j) as f64)).collect();
+    /// Lane::transpose_lanes(&mut b);
+    /// assert_eq!((b[1].extract(2), b[2].extract(1)), (21.0, 12.0));
+    /// ```
+    fn transpose_lanes(block: &mut [Self]);
     /// `0` in every lane.
     #[inline]
     fn zero() -> Self {

@@ -121,6 +121,26 @@ macro_rules! x2_lane {
                     v.set_lane(lane % $n, x);
                 }
             }
+            /// Four transposes of the halves: quadrant (rows `r`, half `c`) becomes
+            /// (rows `c`, half `r`).
+            #[inline]
+            fn transpose_lanes(block: &mut [Self]) {
+                let square: &mut [Self; 2 * $n] = block
+                    .try_into()
+                    .expect("transpose_lanes: the block must hold LANES vectors");
+                let quadrant = |r: usize, c: usize| -> [$v; $n] {
+                    $v::transpose(core::array::from_fn(|i| square[r * $n + i].0[c]))
+                };
+                let t = [
+                    [quadrant(0, 0), quadrant(0, 1)],
+                    [quadrant(1, 0), quadrant(1, 1)],
+                ];
+                for c in 0..2 {
+                    for k in 0..$n {
+                        square[c * $n + k] = X2([t[0][c][k], t[1][c][k]]);
+                    }
+                }
+            }
             #[inline(always)]
             fn sqrt(self) -> Self {
                 X2([self.0[0].sqrt(), self.0[1].sqrt()])

@@ -164,6 +164,94 @@ fn fill_floats<L: Lane>(
     }
 }
 
+/// Writes one sensor's rows of all `lanes` (channel `i` into lane `i`) through
+/// [`rootfuse_batch::fill_lanes`] when every channel stores them in the same float type;
+/// `false` (nothing written) otherwise.
+fn fill_floats_lanes<'s, 'a: 's, L: Lane>(
+    lanes: &[&'s Inputs<'a>],
+    values: impl Fn(&'s Inputs<'a>) -> Option<&'s arrays::Floats<'a>>,
+    start: usize,
+    tile: &mut [(ImuSample<L>, L)],
+    field: impl Fn(&mut ImuSample<L>) -> &mut Vec3<L>,
+) -> bool {
+    use rootfuse_batch::MAX_LANES;
+    if lanes.len() > MAX_LANES {
+        return false;
+    }
+    let mut f32s: [&[f32]; MAX_LANES] = [&[]; MAX_LANES];
+    let mut f64s: [&[f64]; MAX_LANES] = [&[]; MAX_LANES];
+    let (mut n32, mut n64) = (0, 0);
+    for &source in lanes {
+        match values(source) {
+            Some(arrays::Floats::F32(v)) => {
+                f32s[n32] = v;
+                n32 += 1;
+            }
+            Some(arrays::Floats::F64(v)) => {
+                f64s[n64] = v;
+                n64 += 1;
+            }
+            None => return false,
+        }
+    }
+    match (n32, n64) {
+        (n, 0) => rootfuse_batch::fill_lanes(&f32s[..n], start, tile, field),
+        (0, n) => rootfuse_batch::fill_lanes(&f64s[..n], start, tile, field),
+        _ => false,
+    }
+}
+
+impl Inputs<'_> {
+    /// The magnetometer's rows (NaN for 6D input) into lane `lane` of `tile`.
+    ///
+    /// The engine keeps a channel in one lane of one tile for a whole run, and its tiles only
+    /// shrink (the last one), so what the channel wrote into its first entry it wrote into
+    /// every entry; the padding the tile starts with is finite. A lane whose first entry
+    /// already holds NaN (6D data) holds it in every entry, and those stores are skipped.
+    fn fill_mag_lane<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
+        match &self.mag {
+            Some(m) => fill_floats(m, start, lane, tile, |s| &mut s.mag),
+            None if tile
+                .first()
+                .is_some_and(|(s, _)| Into::<f64>::into(s.mag.x.extract(lane)).is_nan()) => {}
+            None => {
+                let nan = <L::Scalar as Lane>::from_f64(f64::NAN);
+                for (s, _) in tile.iter_mut() {
+                    s.mag.x.set_lane(lane, nan);
+                    s.mag.y.set_lane(lane, nan);
+                    s.mag.z.set_lane(lane, nan);
+                }
+            }
+        }
+    }
+
+    /// The steps into lane `lane` of `tile`. A fixed step already in the first entry (equal
+    /// to the padding step, or written before: see [`fill_mag_lane`](Self::fill_mag_lane))
+    /// is in every entry, and those stores are skipped (a fixed step is positive, so `==` is
+    /// equality of bits).
+    fn fill_steps_lane<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
+        match self.steps {
+            Steps::Fixed(dt) => {
+                let dt = <L::Scalar as Lane>::from_f64(*dt);
+                if tile.first().is_some_and(|(_, d)| d.extract(lane) == dt) {
+                    return;
+                }
+                for (_, d) in tile.iter_mut() {
+                    d.set_lane(lane, dt);
+                }
+            }
+            _ => {
+                for (k, (_, d)) in tile.iter_mut().enumerate() {
+                    d.set_lane(
+                        lane,
+                        <L::Scalar as Lane>::from_f64(self.steps.at(start + k)),
+                    );
+                }
+            }
+        }
+    }
+}
+
 impl rootfuse_batch::ChannelSource for Inputs<'_> {
     fn len(&self) -> usize {
         self.len
@@ -179,46 +267,24 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
     fn read_into<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
         fill_floats(&self.gyr, start, lane, tile, |s| &mut s.gyr);
         fill_floats(&self.acc, start, lane, tile, |s| &mut s.acc);
-        // The engine keeps a channel in one lane of one tile for a whole run, and its tiles
-        // only shrink (the last one), so what the channel wrote into its first entry it wrote
-        // into every entry; the padding the tile starts with is finite, with the padding step.
-        // A lane whose first entry already holds what this channel would write again (a NaN
-        // field of 6D data, or a fixed step: equal to the padding step or written before)
-        // holds it in every entry, and those stores are skipped (a fixed step is positive, so `==`
-        // is equality of bits).
-        let first = tile
-            .first()
-            .map(|(s, dt)| (s.mag.x.extract(lane), dt.extract(lane)));
-        match &self.mag {
-            Some(m) => fill_floats(m, start, lane, tile, |s| &mut s.mag),
-            None if first.is_some_and(|(mx, _)| Into::<f64>::into(mx).is_nan()) => {}
-            None => {
-                let nan = <L::Scalar as Lane>::from_f64(f64::NAN);
-                for (s, _) in tile.iter_mut() {
-                    s.mag.x.set_lane(lane, nan);
-                    s.mag.y.set_lane(lane, nan);
-                    s.mag.z.set_lane(lane, nan);
-                }
+        self.fill_mag_lane(start, lane, tile);
+        self.fill_steps_lane(start, lane, tile);
+    }
+    /// The sensors' rows of a full chunk through registers ([`fill_floats_lanes`]), each
+    /// channel's magnetometer (unless all have one) and steps lane by lane.
+    fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
+        let gyr_acc = fill_floats_lanes(lanes, |s| Some(&s.gyr), start, tile, |s| &mut s.gyr)
+            && fill_floats_lanes(lanes, |s| Some(&s.acc), start, tile, |s| &mut s.acc);
+        let mag = fill_floats_lanes(lanes, |s| s.mag.as_ref(), start, tile, |s| &mut s.mag);
+        for (lane, source) in lanes.iter().enumerate() {
+            if !gyr_acc {
+                fill_floats(&source.gyr, start, lane, tile, |s| &mut s.gyr);
+                fill_floats(&source.acc, start, lane, tile, |s| &mut s.acc);
             }
-        }
-        match self.steps {
-            Steps::Fixed(dt) => {
-                let dt = <L::Scalar as Lane>::from_f64(*dt);
-                if first.is_some_and(|(_, d)| d == dt) {
-                    return;
-                }
-                for (_, d) in tile.iter_mut() {
-                    d.set_lane(lane, dt);
-                }
+            if !mag {
+                source.fill_mag_lane(start, lane, tile);
             }
-            _ => {
-                for (k, (_, d)) in tile.iter_mut().enumerate() {
-                    d.set_lane(
-                        lane,
-                        <L::Scalar as Lane>::from_f64(self.steps.at(start + k)),
-                    );
-                }
-            }
+            source.fill_steps_lane(start, lane, tile);
         }
     }
 }

@@ -1,0 +1,37 @@
+//! `Lane::transpose_lanes` against its definition, on every lane type.
+
+use rootfuse_lane::wide::{f32x4, f32x8, f64x2, f64x4};
+use rootfuse_lane::{Lane, X2};
+
+/// Lane `j` of vector `i` is `100 i + j` before; lane `i` of vector `j` must be it after.
+fn transposes<L: Lane>() {
+    let n = L::LANES;
+    let value = |i: usize, j: usize| <L::Scalar as Lane>::from_f64((100 * i + j) as f64);
+    let mut block: Vec<L> = (0..n).map(|i| L::from_fn(|j| value(i, j))).collect();
+    L::transpose_lanes(&mut block);
+    for i in 0..n {
+        for j in 0..n {
+            let got: f64 = block[j].extract(i).into();
+            assert_eq!(got, value(i, j).into(), "{n} lanes: vector {j}, lane {i}");
+        }
+    }
+}
+
+#[test]
+fn every_lane_type_transposes() {
+    transposes::<f32>();
+    transposes::<f64>();
+    transposes::<f32x4>();
+    transposes::<f32x8>();
+    transposes::<f64x2>();
+    transposes::<f64x4>();
+    transposes::<X2<f32x8>>();
+    transposes::<X2<f64x4>>();
+}
+
+#[test]
+#[should_panic(expected = "LANES vectors")]
+fn a_block_of_the_wrong_size_is_refused() {
+    let mut block = vec![f32x8::splat(1.0); 7];
+    f32x8::transpose_lanes(&mut block);
+}
