@@ -7,7 +7,8 @@ timed tests).
     .venv/bin/python benches/python/bench_peers.py [--broad FILE.csv] [--repeats 5]
 
 Rows: our flagship `update_batch` vs the same loop from Rust (examples/filter_loop.rs, same
-outputs), f32 and f64, 9D and 6D; vs `vqf.VQF.updateBatch`, `imufusion` per-sample loop and
+outputs), f32 and f64, 9D and 6D; vs `vqf.VQF.updateBatch`; `smooth` vs `vqf.offlineVQF`;
+`imufusion` per-sample loop and
 `ahrs` Madgwick/Mahony/EKF; 4096 channels x 2000 samples through `run_many` vs `rootfuse
 throughput` lanes on all cores. Every time is the best of `--repeats` runs, per sample
 (per channel-update for the many-channel rows). A peer that is not installed is reported as
@@ -112,6 +113,14 @@ def main():
                 if r[2]:
                     ratios.append(f"Rust loop {precision} / vqf = {r[2] / ns_vqf:.2f}")
             row(f"vqf.VQF.updateBatch {dof}D (C++)", ns_vqf, None, "; ".join(ratios))
+        # The smoother against VQF's offline form (both whole recordings, f64).
+        for dof in (9, 6):
+            m = mag if dof == 9 else None
+            ns_ours = best_of(lambda: rf.smooth("flagship", gyr, acc, m, t=t, dof=dof), args.repeats) * 1e9 / n
+            gc, ac, mc = (np.ascontiguousarray(x) for x in (gyr, acc, mag))
+            ns_off = best_of(lambda: vqf.offlineVQF(gc, ac, mc if dof == 9 else None, ts), args.repeats) * 1e9 / n
+            row(f"rootfuse smooth flagship {dof}D", ns_ours, None, f"ours / offlineVQF = {ns_ours / ns_off:.2f}")
+            row(f"vqf.offlineVQF {dof}D (C++)", ns_off)
     except ImportError:
         row("vqf", float("nan"), None, "not installed")
 

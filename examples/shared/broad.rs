@@ -36,7 +36,7 @@ pub fn vqf_online(name: &str) -> Result<[f64; 3], String> {
 pub fn smoothed(p: &SqrtEskfParams, rec: &Recording) -> [f64; 3] {
     let eval = |dof: Dof, align| {
         let q = SqrtEskfParams { dof, ..p.clone() };
-        let out = forward_backward(rec, || SqrtEskf::<f64>::new(&q), dof.uses_magnetometer())
+        let out = forward_backward(rec, || SqrtEskf::new(&q), dof.uses_magnetometer())
             .expect("sqrt-eskf has a covariance");
         evaluate(rec, &out.quat, align).map_or([f64::NAN; 2], |r| [r.total, r.inclination])
     };

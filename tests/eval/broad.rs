@@ -276,8 +276,8 @@ fn flagship_offline_beats_vqf_offline() {
                 ..SqrtEskfParams::default()
             };
             let p = p.for_smoothing();
-            let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), dof.uses_magnetometer())
-                .unwrap();
+            let out =
+                forward_backward(&rec, || SqrtEskf::new(&p), dof.uses_magnetometer()).unwrap();
             got[d] = evaluate(&rec, &out.quat, align).expect("truth").total;
             if (got[d] - PINNED_OFFLINE[k][d]).abs() > 0.011 {
                 failures.push(format!(

@@ -245,7 +245,7 @@ fn smoother_beats_the_forward_filter() {
         let rec = scenario(name, seed, 60.0, 100.0).unwrap();
         for (dof, align) in [(9.0, Alignment::NineD), (6.0, Alignment::SixD)] {
             let p = params(dof).for_smoothing();
-            let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), dof > 7.5).unwrap();
+            let out = forward_backward(&rec, || SqrtEskf::new(&p), dof > 7.5).unwrap();
             assert_eq!(out.forward_only, 0);
             let smooth = evaluate(&rec, &out.quat, align).unwrap().total;
             let (fwd, _) = rmse64(&rec, dof);
@@ -271,7 +271,7 @@ fn smoothing_time_constant_lowers_the_inclination_error() {
         for seed in 0..3 {
             let rec = scenario(name, seed, 60.0, 100.0).unwrap();
             let incl = |p: &SqrtEskfParams| {
-                let out = forward_backward(&rec, || SqrtEskf::<f64>::new(p), false).unwrap();
+                let out = forward_backward(&rec, || SqrtEskf::new(p), false).unwrap();
                 evaluate(&rec, &out.quat, Alignment::SixD)
                     .unwrap()
                     .inclination
@@ -334,7 +334,7 @@ fn smoother_errors_and_bad_samples() {
     let mut rec = scenario("slow-rotation", 5, 20.0, 100.0).unwrap();
     let mp = MahonyParams::default();
     assert_eq!(
-        forward_backward(&rec, || Mahony::<f64>::new(&mp), true).unwrap_err(),
+        forward_backward(&rec, || Mahony::new(&mp), true).unwrap_err(),
         SmoothError::NoCovariance
     );
     for i in [0, 1, 700, 701, 1999] {
@@ -343,7 +343,7 @@ fn smoother_errors_and_bad_samples() {
     rec.acc[900] = Vec3::new(f64::INFINITY, 0.0, 9.81);
     rec.t[1200] = rec.t[1199];
     let p = params(9.0);
-    let out = forward_backward(&rec, || SqrtEskf::<f64>::new(&p), true).unwrap();
+    let out = forward_backward(&rec, || SqrtEskf::new(&p), true).unwrap();
     assert_eq!(out.quat.len(), rec.len());
     assert!(out.quat.iter().all(|q| q.is_finite()));
     let err = evaluate(&rec, &out.quat, Alignment::NineD).unwrap().total;

@@ -433,8 +433,12 @@ fn smooth_files(
             }
             crate::stream::check_mag(job, file, rec.mag.is_some())?;
             let spec = job.spec.for_smoothing();
-            let smoothed = forward_backward(&rec, || spec.build::<f64>(), job.nine_d)
-                .map_err(|e| format!("{}: {e}", rec.name))?;
+            let smoothed = forward_backward(
+                &rec,
+                || spec.build::<rootfuse_lane::wide::f64x2>(),
+                job.nine_d,
+            )
+            .map_err(|e| format!("{}: {e}", rec.name))?;
             if interrupted() {
                 exit_interrupted();
             }

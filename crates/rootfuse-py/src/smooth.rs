@@ -41,7 +41,11 @@ pub fn smooth<'py>(
     let nine_d = spec.uses_magnetometer();
     let spec = spec.for_smoothing();
     let result = py.detach(|| {
-        rootfuse_attitude::smooth::forward_backward(&rec, || spec.build::<f64>(), nine_d)
+        rootfuse_attitude::smooth::forward_backward(
+            &rec,
+            || spec.build::<rootfuse_lane::wide::f64x2>(),
+            nine_d,
+        )
     });
     let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
     let q: Vec<f64> = smoothed

@@ -106,6 +106,19 @@ impl<T: Lane> SampleFlags<T> {
         .filter(|(m, _)| (m.bitmask() >> lane) & 1 == 1)
         .fold(0, |bits, (_, b)| bits | b)
     }
+
+    /// The flags of `lane` alone.
+    pub fn lane(&self, lane: usize) -> SampleFlags<T::Scalar> {
+        SampleFlags {
+            dt: self.dt.test(lane),
+            gyr: self.gyr.test(lane),
+            acc: self.acc.test(lane),
+            mag: self.mag.test(lane),
+            acc_gated: self.acc_gated.test(lane),
+            mag_disturbed: self.mag_disturbed.test(lane),
+            at_rest: self.at_rest.test(lane),
+        }
+    }
 }
 
 /// Per-lane counts of what was skipped, by reason (each a `u64` per lane), and the flags of
@@ -145,6 +158,33 @@ impl<T: Lane> Rejections<T> {
     /// Total whole-sample skips in `lane`.
     pub fn samples_skipped(&self, lane: usize) -> u64 {
         self.dt.as_ref()[lane] + self.gyr.as_ref()[lane]
+    }
+
+    /// The counts and flags of `lane` alone.
+    ///
+    /// ```
+    /// use rootfuse_attitude::filters::Rejections;
+    /// use rootfuse_lane::{Lane, wide::f64x2};
+    /// let mut r = Rejections::<f64x2>::default();
+    /// r.gate(f64x2::from_fn(|i| i as f64).simd_gt(f64x2::zero()));
+    /// assert_eq!((r.lane(0).gated, r.lane(1).gated), ([0], [1]));
+    /// assert!(r.lane(1).last.acc_gated);
+    /// ```
+    pub fn lane(&self, lane: usize) -> Rejections<T::Scalar> {
+        let one = |c: &T::Counts| {
+            let mut out = <T::Scalar as Lane>::Counts::default();
+            out.as_mut()[0] = c.as_ref()[lane];
+            out
+        };
+        Rejections {
+            dt: one(&self.dt),
+            gyr: one(&self.gyr),
+            acc: one(&self.acc),
+            mag: one(&self.mag),
+            gated: one(&self.gated),
+            mag_disturbed: one(&self.mag_disturbed),
+            last: self.last.lane(lane),
+        }
     }
 }
 
