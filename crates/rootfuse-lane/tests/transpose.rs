@@ -9,9 +9,9 @@ fn transposes<L: Lane>() {
     let value = |i: usize, j: usize| <L::Scalar as Lane>::from_f64((100 * i + j) as f64);
     let mut block: Vec<L> = (0..n).map(|i| L::from_fn(|j| value(i, j))).collect();
     L::transpose_lanes(&mut block);
-    for i in 0..n {
-        for j in 0..n {
-            let got: f64 = block[j].extract(i).into();
+    for (j, v) in block.iter().enumerate() {
+        for i in 0..n {
+            let got: f64 = v.extract(i).into();
             assert_eq!(got, value(i, j).into(), "{n} lanes: vector {j}, lane {i}");
         }
     }
