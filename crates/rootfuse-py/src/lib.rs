@@ -14,6 +14,7 @@ mod consistency;
 mod eval;
 mod filter;
 mod fleet;
+mod inputs;
 mod lsq;
 mod many;
 mod registry;

@@ -10,7 +10,8 @@ use crate::arrays::{
     DofArg, Floats, SensorArray, Steps, float_array, is_bool, positive, sensor_array, type_name,
     vector,
 };
-use crate::filter::{Inputs, rejections_dict, spec_from};
+use crate::filter::{rejections_dict, spec_from};
+use crate::inputs::Inputs;
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;

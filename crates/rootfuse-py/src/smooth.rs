@@ -1,7 +1,8 @@
 //! The offline smoother (`rootfuse_attitude::smooth`) on NumPy arrays.
 
 use crate::arrays::{DofArg, Steps};
-use crate::filter::{Inputs, imu_arrays, recording, spec_from};
+use crate::filter::{imu_arrays, recording, spec_from};
+use crate::inputs::Inputs;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
