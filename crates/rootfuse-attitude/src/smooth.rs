@@ -38,8 +38,9 @@
 
 use crate::filters::Rejections;
 use crate::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_lane::Mask;
 use rootfuse_lane::Mat;
-use rootfuse_lane::wide::f64x2;
+use rootfuse_lane::wide::{f64x2, f64x4};
 use std::vec::Vec;
 
 /// The smoothed estimates of a recording.
@@ -142,27 +143,46 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     if !nine_d {
         let offset = heading_offset(&forward, &backward);
         let turn = Quat::from_heading(offset);
+        // A turn about earth-z rotates the earth-frame covariance with it.
+        let (r, r_t) = (
+            turn.to_rotation_matrix(),
+            turn.to_rotation_matrix().transpose(),
+        );
         for (q, p) in &mut backward {
             *q = (turn * *q).normalize();
-            // A turn about earth-z rotates the earth-frame covariance with it.
             if let Some(p) = p {
-                let r = turn.to_rotation_matrix();
-                *p = r * *p * r.transpose();
+                *p = r * *p * r_t;
             }
         }
     }
+    // The fusion of one sample does not depend on any other: four at a time in `f64x4`
+    // lanes (bit for bit the scalar fusion, by the `Lane` contract).
     let mut forward_only = 0;
-    let quat = forward
-        .iter()
-        .zip(&backward)
-        .map(|(&(qf, pf), &(qb, pb))| match fuse(qf, pf, qb, pb) {
-            Some(q) => q,
-            None => {
+    let mut quat = Vec::with_capacity(n);
+    for (f, b) in forward.chunks(4).zip(backward.chunks(4)) {
+        let at = |i: usize| i.min(f.len() - 1);
+        let q = |pass: &[(Quat<f64>, Option<Mat<f64, 3, 3>>)]| {
+            Quat::new(
+                f64x4::from_fn(|i| pass[at(i)].0.w),
+                f64x4::from_fn(|i| pass[at(i)].0.x),
+                f64x4::from_fn(|i| pass[at(i)].0.y),
+                f64x4::from_fn(|i| pass[at(i)].0.z),
+            )
+        };
+        // A pass without a covariance at a sample is not finite there: not fused.
+        let p = |pass: &[(Quat<f64>, Option<Mat<f64, 3, 3>>)]| {
+            Mat::from_fn(|r, c| f64x4::from_fn(|i| pass[at(i)].1.map_or(f64::NAN, |p| p.m[r][c])))
+        };
+        let (fused, ok) = fuse(q(f), p(f), q(b), p(b));
+        for (i, (qf, _)) in f.iter().enumerate() {
+            if ok.test(i) {
+                quat.push(fused.lane(i));
+            } else {
                 forward_only += 1;
-                qf
+                quat.push(*qf);
             }
-        })
-        .collect();
+        }
+    }
     Ok(Smoothed {
         quat,
         forward_only,
@@ -170,29 +190,25 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     })
 }
 
-/// `Exp(P_f·(P_f + P_b)⁻¹·δ) ⊗ q_f` with `δ = Log(q_b ⊗ q_f*)`; `None` where it cannot be
-/// formed (non-finite input, `P_f + P_b` not positive definite).
-fn fuse(
-    qf: Quat<f64>,
-    pf: Option<Mat<f64, 3, 3>>,
-    qb: Quat<f64>,
-    pb: Option<Mat<f64, 3, 3>>,
-) -> Option<Quat<f64>> {
-    let (pf, pb) = (pf?, pb?);
-    if !(qf.is_finite() && qb.is_finite() && pf.is_finite() && pb.is_finite()) {
-        return None;
-    }
+/// `Exp(P_f·(P_f + P_b)⁻¹·δ) ⊗ q_f` with `δ = Log(q_b ⊗ q_f*)`, per lane, with the mask of
+/// the lanes where it could be formed (finite input, `P_f + P_b` positive definite, a finite
+/// result); the other lanes hold garbage.
+fn fuse<T: Lane>(
+    qf: Quat<T>,
+    pf: Mat<T, 3, 3>,
+    qb: Quat<T>,
+    pb: Mat<T, 3, 3>,
+) -> (Quat<T>, T::Mask) {
+    let finite = qf.is_finite() & qb.is_finite() & pf.is_finite() & pb.is_finite();
     let delta = (qb * qf.conj()).to_rotation_vector();
     let sum = Mat::from_fn(|i, j| pf.m[i][j] + pb.m[i][j]);
-    let (l, ok) = sum.cholesky();
-    if !ok {
-        return None;
-    }
+    let (l, positive) = sum.cholesky();
     let x = l.cholesky_solve(&Mat::from_column(delta.to_array()));
     let k_delta = pf * x;
     let step = Vec3::new(k_delta.m[0][0], k_delta.m[1][0], k_delta.m[2][0]);
     let q = (Quat::from_rotation_vector(step) * qf).normalize();
-    q.is_finite().then_some(q)
+    let ok = finite & positive & q.is_finite();
+    (q, ok)
 }
 
 /// Circular mean of the heading of `q_f ⊗ q_b*` over the samples, weighted by the inverse of
