@@ -161,7 +161,11 @@ pub fn fill_lanes<T: Copy + Into<f64>, L: Lane>(
                 let r = &r[first..first + n];
                 *v = L::from_fn(|k| cast(r[k]));
             }
-            L::transpose_lanes(block);
+            // `block` holds `LANES` vectors, so this cannot refuse; if it did, the first
+            // block returns before anything is written.
+            if !L::transpose_lanes(block) {
+                return false;
+            }
             for (k, v) in block.iter().enumerate() {
                 let m = c * n + k;
                 let target = field(&mut tile[b0 + m / 3].0);
@@ -418,11 +422,15 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         let tile_len = tile_steps::<L>();
         // Per lane, the steps of the current tile its channel has.
         let mut avail = vec![0usize; n];
+        // A full chunk's sources by reference, for `read_lanes` (made once per call; a full
+        // chunk has at least one source).
+        let full: Option<[&S; MAX_LANES]> = (n == L::LANES && n <= MAX_LANES)
+            .then(|| core::array::from_fn(|i| &sources[i.min(n - 1)]));
         let mut k0 = steps.start;
         while k0 < steps.end {
             let len = (steps.end - k0).min(tile_len);
-            if n == L::LANES && n <= MAX_LANES && sources[..n].iter().all(|s| s.len() >= k0 + len) {
-                let lanes: [&S; MAX_LANES] = core::array::from_fn(|i| &sources[i.min(n - 1)]);
+            let all_have_the_tile = sources[..n].iter().all(|s| s.len() >= k0 + len);
+            if let Some(lanes) = full.as_ref().filter(|_| all_have_the_tile) {
                 S::read_lanes(&lanes[..n], k0, &mut tile[..len]);
                 avail.fill(len);
             } else {

@@ -55,11 +55,12 @@ macro_rules! simd_lane {
                 }
             }
             #[inline]
-            fn transpose_lanes(block: &mut [Self]) {
-                let square: &mut [$t; $n] = block
-                    .try_into()
-                    .expect("transpose_lanes: the block must hold LANES vectors");
+            fn transpose_lanes(block: &mut [Self]) -> bool {
+                let Ok(square) = <&mut [$t; $n]>::try_from(block) else {
+                    return false;
+                };
                 *square = $t::transpose(*square);
+                true
             }
             #[inline]
             fn sqrt(self) -> Self {
@@ -197,11 +198,8 @@ macro_rules! scalar_lane {
                 }
             }
             #[inline]
-            fn transpose_lanes(block: &mut [Self]) {
-                assert!(
-                    block.len() == 1,
-                    "transpose_lanes: the block must hold LANES vectors"
-                );
+            fn transpose_lanes(block: &mut [Self]) -> bool {
+                block.len() == 1
             }
             #[inline]
             fn sqrt(self) -> Self {

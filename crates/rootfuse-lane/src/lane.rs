@@ -181,16 +181,15 @@ pub trait Lane:
     /// transposes them into one vector per value (lane `i` from channel `i`) in registers,
     /// instead of one scalar store per value ([`set_lane`](Lane::set_lane)).
     ///
-    /// # Panics
-    /// If `block.len() != LANES` (a caller's error, never data).
+    /// Returns `false`, leaving `block` as it is, unless `block.len() == LANES`.
     ///
     /// ```
     /// use rootfuse_lane::{Lane, wide::f64x4};
     /// let mut b: Vec<f64x4> = (0..4).map(|i| f64x4::from_fn(|j| (10 * i + j) as f64)).collect();
-    /// Lane::transpose_lanes(&mut b);
+    /// assert!(Lane::transpose_lanes(&mut b));
     /// assert_eq!((b[1].extract(2), b[2].extract(1)), (21.0, 12.0));
     /// ```
-    fn transpose_lanes(block: &mut [Self]);
+    fn transpose_lanes(block: &mut [Self]) -> bool;
     /// `0` in every lane.
     #[inline]
     fn zero() -> Self {

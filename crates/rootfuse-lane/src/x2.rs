@@ -124,10 +124,10 @@ macro_rules! x2_lane {
             /// Four transposes of the halves: quadrant (rows `r`, half `c`) becomes
             /// (rows `c`, half `r`).
             #[inline]
-            fn transpose_lanes(block: &mut [Self]) {
-                let square: &mut [Self; 2 * $n] = block
-                    .try_into()
-                    .expect("transpose_lanes: the block must hold LANES vectors");
+            fn transpose_lanes(block: &mut [Self]) -> bool {
+                let Ok(square) = <&mut [Self; 2 * $n]>::try_from(block) else {
+                    return false;
+                };
                 let quadrant = |r: usize, c: usize| -> [$v; $n] {
                     $v::transpose(core::array::from_fn(|i| square[r * $n + i].0[c]))
                 };
@@ -140,6 +140,7 @@ macro_rules! x2_lane {
                         square[c * $n + k] = X2([t[0][c][k], t[1][c][k]]);
                     }
                 }
+                true
             }
             #[inline(always)]
             fn sqrt(self) -> Self {
