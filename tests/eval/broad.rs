@@ -27,7 +27,7 @@ const PINNED: [(&str, u8, [[f64; 3]; 4]); 20] = [
     ("madgwick", 6, [[2.19, 2.09, 0.64], [7.08, 6.75, 2.13], [7.77, 7.18, 2.96], [5.48, 4.01, 3.74]]),
     ("ekf", 9, [[1.59, 1.53, 0.44], [2.99, 1.66, 2.48], [18.38, 15.41, 10.06], [7.48, 6.21, 4.17]]),
     ("ekf", 6, [[1.29, 1.22, 0.42], [6.33, 5.56, 3.03], [98.98, 98.19, 14.49], [27.62, 27.02, 5.80]]),
-    ("sqrt-eskf", 9, [[1.25, 1.17, 0.44], [1.62, 1.26, 1.02], [0.78, 0.55, 0.55], [1.96, 1.63, 1.09]]),
+    ("sqrt-eskf", 9, [[1.28, 1.20, 0.44], [1.64, 1.29, 1.02], [0.81, 0.58, 0.55], [1.95, 1.63, 1.09]]),
     ("sqrt-eskf", 6, [[0.61, 0.42, 0.44], [1.53, 1.14, 1.02], [0.67, 0.37, 0.55], [4.66, 4.53, 1.09]]),
     ("ecf-ekf", 9, [[1.69, 1.60, 0.55], [4.48, 3.97, 2.08], [34.97, 26.50, 23.21], [19.16, 18.56, 4.80]]),
     ("ecf-ekf", 6, [[2.31, 2.24, 0.54], [20.58, 20.47, 2.17], [99.53, 97.08, 25.24], [88.02, 87.90, 5.33]]),
@@ -162,10 +162,10 @@ const VQF_ONLINE_9D: [f64; 4] = [1.38, 1.75, 0.74, 2.38];
 const VQF_ONLINE_6D: [f64; 4] = [0.63, 1.55, 0.66, 4.82];
 
 /// Where the flagship is behind VQF online on one of the four trials: (trial index, 0 for 9D
-/// or 1 for 6D, largest total RMSE allowed, degrees). Trial 16's totals are 0.779° / 0.667°
+/// or 1 for 6D, largest total RMSE allowed, degrees). Trial 16's totals are 0.806° / 0.667°
 /// (9D / 6D) with two accelerometer windows, 0.714° / 0.652° with one (docs/accuracy.md, "Two
 /// accelerometer windows").
-const BEHIND_VQF_ONLINE: [(usize, usize, f64); 2] = [(2, 0, 0.79), (2, 1, 0.675)];
+const BEHIND_VQF_ONLINE: [(usize, usize, f64); 2] = [(2, 0, 0.81), (2, 1, 0.675)];
 
 /// The flagship (registered as `flagship`) beats VQF online on the mean, in 9D and 6D, in f64
 /// and f32, and on every trial but those of [`BEHIND_VQF_ONLINE`], which stay within their
@@ -257,7 +257,7 @@ const VQF_OFFLINE_9D: [f64; 4] = [1.01, 1.71, 0.58, 1.81];
 fn flagship_offline_beats_vqf_offline() {
     use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
     use rootfuse_attitude::smooth::forward_backward;
-    const PINNED_OFFLINE: [[f64; 2]; 4] = [[0.76, 0.55], [1.39, 1.48], [0.54, 0.59], [1.64, 4.63]];
+    const PINNED_OFFLINE: [[f64; 2]; 4] = [[0.78, 0.55], [1.34, 1.48], [0.54, 0.59], [1.63, 4.63]];
     let Some(dir) = broad_dir() else { return };
     let mut failures = Vec::new();
     let mut sum = 0.0;

@@ -134,14 +134,29 @@ params! {
         /// and misalignment errors make the 6D heading drift in proportion to the rotation):
         /// the offset's variance grows by `(heading_rate_noise·|ω|)²·dt`.
         heading_rate_noise: f64 = 0.001, "√s", [0.0, 10.0];
+        /// Random-walk density of the 9D heading offset per unit of rotation about earth-z:
+        /// the offset's variance grows by `(heading_up_rate_noise·ω_z)²·dt`, `ω_z` the
+        /// bias-corrected rate about the vertical. A gyro scale-factor error drifts the 6D
+        /// heading by a fraction of the angle turned about the vertical, more than by the
+        /// same angle about a horizontal axis.
+        heading_up_rate_noise: f64 = 0.004, "√s", [0.0, 10.0];
         /// Noise density of the magnetic heading measurement (`r = mag_noise²/dt`).
         mag_noise: f64 = 0.13, "rad·√s", [1e-9, 10.0];
         /// Largest relative deviation of the field norm from the reference.
-        mag_norm_th: f64 = 0.05, "1", [0.0, 10.0];
+        mag_norm_th: f64 = 0.07, "1", [0.0, 10.0];
         /// Largest deviation of the field dip from the reference.
         mag_dip_th: f64 = 0.1, "rad", [0.0, 4.0];
         /// Time constant with which the field reference and candidate are learned.
         mag_ref_tau: f64 = 10.0, "s", [1e-3, 1e6];
+        /// Time constant of the low-pass of the field norm and dip that the disturbance
+        /// tests and the reference see (sensor noise alone moves a single sample's norm by a
+        /// few percent); 0 tests each sample as it comes. The heading measurement itself is
+        /// not low-passed.
+        mag_lowpass_tau: f64 = 0.05, "s", [0.0, 100.0];
+        /// The field must have matched the reference this long without interruption before
+        /// it corrects the heading again (a short disturbance often passes through the
+        /// thresholds at its edges).
+        mag_settle_time: f64 = 0.5, "s", [0.0, 1e6];
         /// A stable candidate field becomes the reference after this long.
         mag_new_time: f64 = 20.0, "s", [0.0, 1e6];
         /// Rejection lasting this long makes the (stable) candidate the reference.
@@ -162,6 +177,12 @@ lane_state! {
         candidate_time: T,
         /// How long (s) the field has been rejected without interruption.
         rejected_time: T,
+        /// How long (s) the field has matched the reference (or been adopted) without
+        /// interruption.
+        undisturbed_time: T,
+        /// Low-passed field norm (input units; 0 until the first usable sample) and dip (rad).
+        lowpass_norm: T,
+        lowpass_dip: T,
     }
 }
 
@@ -289,10 +310,13 @@ lane_state! {
         bias_step_threshold: T,
         heading_walk_var: T,
         heading_rate_var: T,
+        heading_up_rate_var: T,
         mag_var: T,
         mag_norm_th: T,
         mag_dip_th: T,
         mag_ref_tau: T,
+        mag_lowpass_tau: T,
+        mag_settle_time: T,
         mag_new_time: T,
         mag_reject_time: T,
     }
@@ -362,10 +386,13 @@ impl<T: Lane> Coefficients<T> {
             }),
             heading_walk_var: p.coef(|p| p.heading_walk * p.heading_walk),
             heading_rate_var: p.coef(|p| p.heading_rate_noise * p.heading_rate_noise),
+            heading_up_rate_var: p.coef(|p| p.heading_up_rate_noise * p.heading_up_rate_noise),
             mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
             mag_norm_th: p.coef(|p| p.mag_norm_th),
             mag_dip_th: p.coef(|p| p.mag_dip_th),
             mag_ref_tau: p.coef(|p| p.mag_ref_tau),
+            mag_lowpass_tau: p.coef(|p| p.mag_lowpass_tau),
+            mag_settle_time: p.coef(|p| p.mag_settle_time),
             mag_new_time: p.coef(|p| p.mag_new_time),
             mag_reject_time: p.coef(|p| p.mag_reject_time),
         }
@@ -416,6 +443,7 @@ struct PerDt<T: Lane> {
     /// (`model_error_window`).
     k_rest: T,
     k_ref: T,
+    k_mag: T,
     k_acc: T,
     k_adapt: T,
     /// The long window's low-pass gain (each stage `tau_acc_long/2`) and its motion
@@ -445,6 +473,7 @@ impl<T: Lane> PerDt<T> {
             r_mag: c.mag_var / per_sample,
             k_rest: lowpass_gain(dt, c.rest_tau),
             k_ref: lowpass_gain(dt, c.mag_ref_tau),
+            k_mag: lowpass_gain(dt, c.mag_lowpass_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
             k_adapt: lowpass_gain(dt, c.acc_adapt_window),
             k_acc_long: if two_windows {
@@ -503,6 +532,9 @@ impl<T: Lane> State<T> {
                 candidate_dip: zero,
                 candidate_time: zero,
                 rejected_time: zero,
+                undisturbed_time: zero,
+                lowpass_norm: zero,
+                lowpass_dip: zero,
             },
             initialized: <T::Mask as Mask>::splat(false),
             preset: <T::Mask as Mask>::splat(false),
@@ -577,7 +609,7 @@ impl<T: Lane> State<T> {
 /// - `rest_gyr` (0.035 rad/s), `rest_acc` (0.5 m/s²), `rest_time` (1.5 s): rest detection,
 ///   where the gyro bias is measured directly (`rest_noise`); `bias_walk` is how fast the
 ///   bias is assumed to wander;
-/// - `mag_noise` (0.13 rad·√s), `mag_norm_th` (5 %), `mag_dip_th` (0.1 rad): how fast the
+/// - `mag_noise` (0.13 rad·√s), `mag_norm_th` (7 %), `mag_dip_th` (0.1 rad): how fast the
 ///   magnetometer pulls the heading, and when a field counts as disturbed;
 /// - the screening limits `max_dt`, `max_gyr`, `max_acc`, `max_mag` that every filter shares.
 ///

@@ -120,6 +120,11 @@ impl<T: Lane> SqrtEskf<T> {
             f.dip = T::select(mag_fresh, dip, f.dip);
             f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
             f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
+            f.lowpass_norm = T::select(mag_fresh, s.mag_norm, f.lowpass_norm);
+            f.lowpass_dip = T::select(mag_fresh, dip, f.lowpass_dip);
+            // The first field is the reference: it may correct the heading at once.
+            f.undisturbed_time =
+                T::select(mag_fresh, self.coef.mag_settle_time, f.undisturbed_time);
             st.factor = Mat::select(
                 fresh & !st.preset_covariance,
                 &self.coef.initial_factor(),
@@ -410,13 +415,22 @@ impl<T: Lane> SqrtEskf<T> {
         let one = T::one();
         let dt = s.dt;
         let c = &self.coef;
-        self.state.heading_offset_var +=
-            (c.heading_walk_var + c.heading_rate_var * w.norm_squared()) * dt + heading_growth;
         let q6 = self.quat6();
+        let w_up = q6.up_in_sensor().dot(w);
+        self.state.heading_offset_var += (c.heading_walk_var
+            + c.heading_rate_var * w.norm_squared()
+            + c.heading_up_rate_var * w_up * w_up)
+            * dt
+            + heading_growth;
         let h = q6.rotate(s.mag);
-        let dip = (-h.z).clamp(-one, one).asin();
         let f = self.state.field;
-        let norm = s.mag_norm;
+        // The tests and the reference see the low-passed norm and dip; the first usable
+        // sample (a lane that started without one) seeds the low-pass.
+        let seed = f.lowpass_norm.simd_eq(zero);
+        let k_mag = self.per_dt.k_mag;
+        let lowpass = |y: T, x: T| T::select(seed, x, y + (x - y) * k_mag);
+        let norm = lowpass(f.lowpass_norm, s.mag_norm);
+        let dip = lowpass(f.lowpass_dip, (-h.z).clamp(-one, one).asin());
         let matches = |rn: T, rd: T| {
             (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
         };
@@ -424,6 +438,8 @@ impl<T: Lane> SqrtEskf<T> {
         let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
         let k_ref = self.per_dt.k_ref;
         let mut nf = f;
+        nf.lowpass_norm = norm;
+        nf.lowpass_dip = dip;
         nf.candidate_norm = T::select(
             ok_cand,
             f.candidate_norm + (norm - f.candidate_norm) * k_ref,
@@ -448,9 +464,13 @@ impl<T: Lane> SqrtEskf<T> {
         nf.norm = T::select(adopt, nf.candidate_norm, nf.norm);
         nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
         nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
-        let use_mag = (ok_ref | adopt) & s.mag_ok;
+        let matched = ok_ref | adopt;
+        nf.undisturbed_time = T::select(matched, f.undisturbed_time + dt, zero);
+        let use_mag = matched & s.mag_ok & nf.undisturbed_time.simd_ge(c.mag_settle_time);
         self.state.field = Select::select(s.mag_ok, &nf, &f);
-        self.state.mag_disturbed = rejected & !adopt;
+        // Disturbed: a usable sample that does not correct the heading, because the field
+        // does not match the reference or has not matched it for `mag_settle_time` yet.
+        self.state.mag_disturbed = s.mag_ok & !use_mag;
         self.rejections.reject_field(self.state.mag_disturbed);
 
         let st = &mut self.state;
