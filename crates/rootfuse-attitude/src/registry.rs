@@ -111,6 +111,9 @@ macro_rules! registry {
         }
 
         /// The parameters of one registered filter.
+        // Built once per filter or spec, never per sample: boxing the flagship's set would
+        // cost an allocation for nothing.
+        #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug, PartialEq)]
         pub enum AnyParams {
             $( #[doc = $doc] $variant($params), )*
@@ -196,6 +199,9 @@ macro_rules! registry {
             #[inline]
             fn magnetic_disturbance(&self) -> Option<T::Mask> {
                 match self { $(Self::$variant(f) => f.magnetic_disturbance(),)* }
+            }
+            fn forget_field_reference(&mut self, lanes: T::Mask) {
+                match self { $(Self::$variant(f) => f.forget_field_reference(lanes),)* }
             }
         }
 

@@ -639,3 +639,72 @@ fn a_disturbance_is_flagged_until_the_field_has_settled() {
     );
     assert_eq!(flagged(&p, &pulse, 6.1 + settle, 15.0), 0.0, "settled");
 }
+
+/// A room-fixed disturbance that is homogeneous and stable for longer than `mag_new_time`
+/// (the simulated `pendulum-disturbed`, 9D, three seeds of 120 s) is adopted as a new
+/// reference with its own azimuth, not as north: the heading error stays a fraction of what
+/// it is when the adopted field becomes north at once (`mag_azimuth_tau = 0`).
+#[test]
+fn an_adopted_field_keeps_the_heading() {
+    let rmse = |tau: f64| {
+        let p = SqrtEskfParams {
+            mag_azimuth_tau: tau,
+            ..params(9.0)
+        };
+        let mut sum = 0.0;
+        for seed in 0..3 {
+            let rec = scenario("pendulum-disturbed", seed, 120.0, 100.0).unwrap();
+            let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
+            sum += evaluate(&rec, &est, Alignment::NineD).unwrap().total / 3.0;
+        }
+        sum
+    };
+    let (kept, north) = (rmse(params(9.0).mag_azimuth_tau), rmse(0.0));
+    eprintln!("pendulum-disturbed 9D: {kept:.2}° keeping the heading, {north:.2}° adopting north");
+    assert!(kept < 0.4 * north, "{kept} vs {north}");
+}
+
+/// A lane whose magnetometer readings start only after the first 2 s (NaN before) takes its
+/// first reading as the field reference and corrects the heading from there, as a lane with
+/// readings from the start does, instead of rejecting the field until a candidate is adopted
+/// (`mag_new_time`, 20 s): 1 s after the readings start the heading is within 2° of that of
+/// a filter that had them from the start. `forget_field_reference` does the same for a
+/// running filter.
+#[test]
+fn a_late_field_becomes_the_reference() {
+    let rec = scenario("slow-rotation", 2, 12.0, 100.0).unwrap();
+    let late = |i: usize, s: ImuSample<f64>| {
+        if i < 200 {
+            ImuSample::new(s.gyr, s.acc, Vec3::new(f64::NAN, f64::NAN, f64::NAN))
+        } else {
+            s
+        }
+    };
+    let heading = |f: &SqrtEskf<f64>| f.quat().heading_inclination().0;
+    let (mut full, mut delayed, mut forgot) = (
+        SqrtEskf::<f64>::new(&params(9.0)),
+        SqrtEskf::<f64>::new(&params(9.0)),
+        SqrtEskf::<f64>::new(&params(9.0)),
+    );
+    for i in 0..300 {
+        let s = rec.sample(i);
+        full.update(&s, rec.dt(i));
+        delayed.update(&late(i, s), rec.dt(i));
+        // A field 20 % stronger from 1 s on, known to the filter as a new calibration.
+        let scaled = ImuSample::new(s.gyr, s.acc, s.mag * if i >= 100 { 1.2 } else { 1.0 });
+        if i == 100 {
+            forgot.forget_field_reference(true);
+        }
+        forgot.update(&scaled, rec.dt(i));
+        if i >= 100 {
+            assert_eq!(forgot.magnetic_disturbance(), Some(false), "sample {i}");
+        }
+    }
+    let gap = |f: &SqrtEskf<f64>| {
+        let d = (heading(f) - heading(&full)).to_degrees();
+        (d + 180.0).rem_euclid(360.0) - 180.0
+    };
+    assert!(gap(&delayed).abs() < 2.0, "{}", gap(&delayed));
+    assert_eq!(delayed.magnetic_disturbance(), Some(false));
+    assert!(gap(&forgot).abs() < 2.0, "{}", gap(&forgot));
+}

@@ -32,10 +32,7 @@ import accuracy_peers as peers  # noqa: E402
 KNOWN_BEHIND = {
     ("pendulum-6d 6D", "offline", "total"): 1.073,
     ("pendulum-6d 6D", "offline", "inclination"): 1.071,
-    ("pendulum-disturbed 9D", "online", "total"): 2.10,
-    ("pendulum-disturbed 9D", "offline", "total"): 2.44,
     ("pendulum-disturbed 9D", "offline", "inclination"): 1.07,
-    ("handheld-translation-disturbed 9D", "offline", "total"): 1.16,
     ("BROAD, 14 trials, 9D", "offline", "inclination"): 1.04,
     ("BROAD, 14 trials, 6D", "offline", "inclination"): 1.04,
 }

@@ -15,7 +15,8 @@ use rootfuse_lsq::rls::RlsError;
 /// lane is re-aligned to the corrected field ([`OrientationFilter::set_heading`] with the
 /// tilt-compensated heading of the corrected reading): the heading it had was built from the
 /// uncorrected field, and a filter that trusts its gyroscope would otherwise take minutes to
-/// walk it over.
+/// walk it over; and the inner filter forgets the field reference it learned from the
+/// uncorrected readings ([`OrientationFilter::forget_field_reference`]).
 #[derive(Clone, Debug)]
 pub struct MagCalibrated<T: Lane, F> {
     inner: F,
@@ -58,6 +59,8 @@ impl<T: Lane, F: OrientationFilter<T>> OrientationFilter<T> for MagCalibrated<T,
             let _ = self
                 .inner
                 .set_heading(T::select(fresh & ok, current + err, current));
+            // The corrected readings are a new field only to the filter: not a disturbance.
+            self.inner.forget_field_reference(fresh);
         }
         self.inner.update(&ImuSample { mag, ..*sample }, dt);
     }
@@ -96,5 +99,8 @@ impl<T: Lane, F: OrientationFilter<T>> OrientationFilter<T> for MagCalibrated<T,
     }
     fn set_heading(&mut self, heading: T) -> Result<(), StateError> {
         self.inner.set_heading(heading)
+    }
+    fn forget_field_reference(&mut self, lanes: T::Mask) {
+        self.inner.forget_field_reference(lanes);
     }
 }

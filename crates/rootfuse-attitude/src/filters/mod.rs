@@ -165,6 +165,16 @@ pub trait OrientationFilter<T: Lane> {
         }
         f
     }
+    /// From the next sample on, the magnetometer's readings in the lanes of `lanes` change
+    /// for a reason that is not the field's (a calibration is now applied to them, as
+    /// [`MagCalibrated`](crate::calibration::MagCalibrated) does): a filter that learns a
+    /// reference of the field forgets it there and takes the next usable reading as its
+    /// reference, pointing north, instead of rejecting the new readings as a disturbance.
+    /// Nothing else changes. The default, for filters without a field reference, does
+    /// nothing.
+    fn forget_field_reference(&mut self, lanes: T::Mask) {
+        let _ = lanes;
+    }
     /// Back to the state of a new filter with the same parameters: the samples that follow
     /// give the same bits as they would in a filter just built (orientation, bias,
     /// covariance, pre-processing windows, counters).

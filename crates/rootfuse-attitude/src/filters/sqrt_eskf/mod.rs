@@ -157,6 +157,14 @@ params! {
         /// it corrects the heading again (a short disturbance often passes through the
         /// thresholds at its edges).
         mag_settle_time: f64 = 0.5, "s", [0.0, 1e6];
+        /// A field adopted as the new reference keeps the heading: its azimuth in the 9D frame
+        /// at adoption becomes the reference's, and that azimuth decays to 0 (the new field
+        /// becomes north) with this time constant while the field corrects the heading. A
+        /// homogeneous disturbance that lasts longer than `mag_new_time` (a car, a steel
+        /// building) then turns the heading slowly instead of at once; a recording that
+        /// starts inside one reaches the true north as slowly. 0 makes an adopted field north
+        /// at once.
+        mag_azimuth_tau: f64 = 60.0, "s", [0.0, 1e9];
         /// A stable candidate field becomes the reference after this long.
         mag_new_time: f64 = 20.0, "s", [0.0, 1e6];
         /// Rejection lasting this long makes the (stable) candidate the reference.
@@ -177,6 +185,10 @@ lane_state! {
         candidate_time: T,
         /// How long (s) the field has been rejected without interruption.
         rejected_time: T,
+        /// Azimuth (rad) of the reference field in the 9D frame (0: it points north) and of
+        /// the candidate.
+        azimuth: T,
+        candidate_azimuth: T,
         /// How long (s) the field has matched the reference (or been adopted) without
         /// interruption.
         undisturbed_time: T,
@@ -317,6 +329,7 @@ lane_state! {
         mag_ref_tau: T,
         mag_lowpass_tau: T,
         mag_settle_time: T,
+        mag_azimuth_tau: T,
         mag_new_time: T,
         mag_reject_time: T,
     }
@@ -393,6 +406,7 @@ impl<T: Lane> Coefficients<T> {
             mag_ref_tau: p.coef(|p| p.mag_ref_tau),
             mag_lowpass_tau: p.coef(|p| p.mag_lowpass_tau),
             mag_settle_time: p.coef(|p| p.mag_settle_time),
+            mag_azimuth_tau: p.coef(|p| p.mag_azimuth_tau),
             mag_new_time: p.coef(|p| p.mag_new_time),
             mag_reject_time: p.coef(|p| p.mag_reject_time),
         }
@@ -444,6 +458,7 @@ struct PerDt<T: Lane> {
     k_rest: T,
     k_ref: T,
     k_mag: T,
+    k_azimuth: T,
     k_acc: T,
     k_adapt: T,
     /// The long window's low-pass gain (each stage `tau_acc_long/2`) and its motion
@@ -474,6 +489,7 @@ impl<T: Lane> PerDt<T> {
             k_rest: lowpass_gain(dt, c.rest_tau),
             k_ref: lowpass_gain(dt, c.mag_ref_tau),
             k_mag: lowpass_gain(dt, c.mag_lowpass_tau),
+            k_azimuth: lowpass_gain(dt, c.mag_azimuth_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
             k_adapt: lowpass_gain(dt, c.acc_adapt_window),
             k_acc_long: if two_windows {
@@ -532,6 +548,8 @@ impl<T: Lane> State<T> {
                 candidate_dip: zero,
                 candidate_time: zero,
                 rejected_time: zero,
+                azimuth: zero,
+                candidate_azimuth: zero,
                 undisturbed_time: zero,
                 lowpass_norm: zero,
                 lowpass_dip: zero,

@@ -122,7 +122,10 @@ impl<T: Lane> SqrtEskf<T> {
             f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
             f.lowpass_norm = T::select(mag_fresh, s.mag_norm, f.lowpass_norm);
             f.lowpass_dip = T::select(mag_fresh, dip, f.lowpass_dip);
-            // The first field is the reference: it may correct the heading at once.
+            f.azimuth = T::select(mag_fresh, zero, f.azimuth);
+            f.candidate_azimuth = T::select(mag_fresh, zero, f.candidate_azimuth);
+            // The first field is the reference (it points north): it may correct the
+            // heading at once.
             f.undisturbed_time =
                 T::select(mag_fresh, self.coef.mag_settle_time, f.undisturbed_time);
             st.factor = Mat::select(
@@ -423,9 +426,62 @@ impl<T: Lane> SqrtEskf<T> {
             * dt
             + heading_growth;
         let h = q6.rotate(s.mag);
+        // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
+        // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
+        let (psi6, psi_ok) = field_heading_error(h);
         let f = self.state.field;
         // The tests and the reference see the low-passed norm and dip; the first usable
         // sample (a lane that started without one) seeds the low-pass.
+        let seed = f.lowpass_norm.simd_eq(zero);
+        // A lane without a reference (its first usable reading came after the start, or
+        // `forget_field_reference`) takes this reading as the reference, pointing north, and
+        // its heading from it as a new filter does (unless the orientation was preset).
+        let seeded = seed & s.mag_ok & psi_ok;
+        let st = &mut self.state;
+        st.heading_offset = T::select(seeded & !st.preset, psi6, st.heading_offset);
+        let azimuth = (psi6 - st.heading_offset).wrap_pi();
+        let use_mag = self.track_field(s, h, azimuth, psi_ok, seeded);
+
+        let st = &mut self.state;
+        let apply = use_mag & psi_ok & !fresh;
+        // While the field corrects the heading, its azimuth decays to 0: it becomes north
+        // (at once with `mag_azimuth_tau = 0`).
+        let az = st.field.azimuth;
+        st.field.azimuth = T::select(apply, az - az * self.per_dt.k_azimuth, az);
+        let psi = (azimuth - st.field.azimuth).wrap_pi();
+        let r_mag = self.per_dt.r_mag;
+        let alpha = st.heading_offset_var + r_mag;
+        let k = st.heading_offset_var / alpha;
+        let m = st.heading_innovation_ms;
+        st.heading_innovation_ms = T::select(apply, m + (psi * psi - m) * self.per_dt.k_model, m);
+        st.heading_offset = T::select(
+            apply,
+            (st.heading_offset + k * psi).wrap_pi(),
+            st.heading_offset,
+        );
+        st.heading_offset_var = T::select(
+            apply,
+            st.heading_offset_var * (one - k),
+            st.heading_offset_var,
+        );
+    }
+
+    /// The field test of one sample: the low-passed norm and dip against the reference and
+    /// the candidate, re-acquisition, a new reference where `seeded`, and the settle time.
+    /// Returns the lanes whose reading may correct the heading; flags and counts the others.
+    fn track_field(
+        &mut self,
+        s: &Screened<T>,
+        h: Vec3<T>,
+        azimuth: T,
+        psi_ok: T::Mask,
+        seeded: T::Mask,
+    ) -> T::Mask {
+        let zero = T::zero();
+        let one = T::one();
+        let dt = s.dt;
+        let c = &self.coef;
+        let f = self.state.field;
         let seed = f.lowpass_norm.simd_eq(zero);
         let k_mag = self.per_dt.k_mag;
         let lowpass = |y: T, x: T| T::select(seed, x, y + (x - y) * k_mag);
@@ -451,6 +507,12 @@ impl<T: Lane> SqrtEskf<T> {
             dip,
         );
         nf.candidate_time = T::select(ok_cand, f.candidate_time + dt, zero);
+        let candidate_azimuth = T::select(
+            ok_cand,
+            (f.candidate_azimuth + (azimuth - f.candidate_azimuth).wrap_pi() * k_ref).wrap_pi(),
+            azimuth,
+        );
+        nf.candidate_azimuth = T::select(psi_ok, candidate_azimuth, f.candidate_azimuth);
         nf.norm = T::select(ok_ref, f.norm + (norm - f.norm) * k_ref, f.norm);
         nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
         let rejected = s.mag_ok & !ok_ref;
@@ -463,37 +525,36 @@ impl<T: Lane> SqrtEskf<T> {
                     & nf.candidate_time.simd_ge(c.rest_time)));
         nf.norm = T::select(adopt, nf.candidate_norm, nf.norm);
         nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
+        // The adopted field keeps the heading: it is measured from its own azimuth.
+        nf.azimuth = T::select(adopt, nf.candidate_azimuth, nf.azimuth);
         nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
+        let reference = FieldReference {
+            norm,
+            dip,
+            candidate_norm: norm,
+            candidate_dip: dip,
+            candidate_time: zero,
+            rejected_time: zero,
+            azimuth: zero,
+            candidate_azimuth: azimuth,
+            undisturbed_time: zero,
+            lowpass_norm: norm,
+            lowpass_dip: dip,
+        };
+        nf = Select::select(seeded, &reference, &nf);
+        let adopt = adopt | seeded;
         let matched = ok_ref | adopt;
         nf.undisturbed_time = T::select(matched, f.undisturbed_time + dt, zero);
+        // A new reference corrects the heading at once.
+        let settled = nf.undisturbed_time.max(c.mag_settle_time);
+        nf.undisturbed_time = T::select(seeded, settled, nf.undisturbed_time);
         let use_mag = matched & s.mag_ok & nf.undisturbed_time.simd_ge(c.mag_settle_time);
         self.state.field = Select::select(s.mag_ok, &nf, &f);
         // Disturbed: a usable sample that does not correct the heading, because the field
         // does not match the reference or has not matched it for `mag_settle_time` yet.
         self.state.mag_disturbed = s.mag_ok & !use_mag;
         self.rejections.reject_field(self.state.mag_disturbed);
-
-        let st = &mut self.state;
-        // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
-        // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
-        let (psi6, psi_ok) = field_heading_error(h);
-        let psi = (psi6 - st.heading_offset).wrap_pi();
-        let r_mag = self.per_dt.r_mag;
-        let alpha = st.heading_offset_var + r_mag;
-        let k = st.heading_offset_var / alpha;
-        let apply = use_mag & psi_ok & !fresh;
-        let m = st.heading_innovation_ms;
-        st.heading_innovation_ms = T::select(apply, m + (psi * psi - m) * self.per_dt.k_model, m);
-        st.heading_offset = T::select(
-            apply,
-            (st.heading_offset + k * psi).wrap_pi(),
-            st.heading_offset,
-        );
-        st.heading_offset_var = T::select(
-            apply,
-            st.heading_offset_var * (one - k),
-            st.heading_offset_var,
-        );
+        use_mag
     }
 }
 
@@ -580,5 +641,12 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     /// 9D only (`false` in 6D).
     fn magnetic_disturbance(&self) -> Option<T::Mask> {
         Some(self.state.mag_disturbed)
+    }
+    /// 9D: the next usable magnetometer reading becomes the field reference, pointing north,
+    /// and sets the heading, as the first reading of a new filter does (unless the
+    /// orientation was preset with `set_quat` before the first sample).
+    fn forget_field_reference(&mut self, lanes: T::Mask) {
+        let f = &mut self.state.field;
+        f.lowpass_norm = T::select(lanes, T::zero(), f.lowpass_norm);
     }
 }
