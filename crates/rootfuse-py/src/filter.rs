@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rootfuse_attitude::filters::{ParamKind, Rejections, StateError};
 use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
-use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Recording, Vec3};
+use rootfuse_attitude::{Dof, ImuSample, Lane, Mask, OrientationFilter, Recording, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
@@ -594,6 +594,17 @@ impl Filter {
         let mut state = self.lock()?;
         let r = with_state!(&mut *state, f => f.set_heading(Lane::from_f64(heading)));
         self.state_result(r, false).map(|_| ())
+    }
+
+    /// The magnetometer's readings change from the next sample on for a reason that is not
+    /// the field's (the caller now applies a new calibration to them): a filter that learns
+    /// a field reference (`sqrt-eskf` in 9D) takes the next usable reading as its reference,
+    /// pointing north, and its heading from it, instead of rejecting the new readings as a
+    /// disturbance. Nothing for the other filters.
+    fn forget_field_reference(&self) -> PyResult<()> {
+        let mut state = self.lock()?;
+        with_state!(&mut *state, f => f.forget_field_reference(Mask::splat(true)));
+        Ok(())
     }
 
     /// Back to the state just after construction (same parameters and precision).

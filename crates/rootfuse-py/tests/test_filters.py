@@ -186,3 +186,22 @@ def test_state_control():
         f.set_bias([np.nan, 0.0, 0.0])
     with pytest.raises(ValueError, match="heading: expected a finite angle"):
         f.set_heading(float("inf"))
+
+
+def test_forget_field_reference():
+    # A still sensor whose magnetometer reads 20 % stronger from 1 s on because a calibration
+    # changed: rejected as a disturbance unless the filter is told, then used at once.
+    n, dip = 300, np.radians(64.0)
+    g = np.zeros((n, 3)); a = np.tile([0.0, 0.0, 9.81], (n, 1))
+    m = np.tile([0.0, 50 * np.cos(dip), -50 * np.sin(dip)], (n, 1))
+    m[100:] *= 1.2
+    disturbed = 64
+    told, untold = rf.Filter("flagship", dof=9), rf.Filter("flagship", dof=9)
+    for f in (told, untold):
+        f.update_batch(g[:100], a[:100], m[:100], 0.01)
+    told.forget_field_reference()
+    flags_told = told.update_batch(g[100:], a[100:], m[100:], 0.01)["flags"]
+    flags_untold = untold.update_batch(g[100:], a[100:], m[100:], 0.01)["flags"]
+    assert not np.any(flags_told & disturbed)
+    assert np.all(flags_untold[5:] & disturbed)  # after the 50 ms low-pass of the field
+    rf.Filter("mahony").forget_field_reference()  # no reference: nothing happens

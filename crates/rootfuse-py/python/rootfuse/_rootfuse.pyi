@@ -181,6 +181,8 @@ class Filter:
         """Sets the gyro bias, rad/s (|component| <= 1); False for filters that cannot hold a 3-axis bias; sigma (rad/s) sets its covariance too."""
     def set_heading(self, heading: float) -> None:
         """Turns about earth-up to this heading, rad (counter-clockwise from north)."""
+    def forget_field_reference(self) -> None:
+        """The magnetometer readings change from the next sample on because a new calibration is applied: the next usable reading becomes the field reference, pointing north (sqrt-eskf 9D; nothing for the other filters)."""
     def reset(self) -> None:
         """Back to the freshly built state (same parameters and precision)."""
 
