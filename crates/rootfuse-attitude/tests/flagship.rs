@@ -708,3 +708,41 @@ fn a_late_field_becomes_the_reference() {
     assert_eq!(delayed.magnetic_disturbance(), Some(false));
     assert!(gap(&forgot).abs() < 2.0, "{}", gap(&forgot));
 }
+
+/// A forgotten reference stays forgotten until a reading gives an azimuth: readings of a
+/// field within a degree of vertical do not make a reference, and the first usable one
+/// resets the heading with the initial heading uncertainty (30°), not the converged one.
+#[test]
+fn a_new_reference_waits_for_an_azimuth_and_starts_uncertain() {
+    let rec = scenario("slow-rotation", 2, 12.0, 100.0).unwrap();
+    let heading = |f: &SqrtEskf<f64>| f.quat().heading_inclination().0;
+    let heading_var = |f: &SqrtEskf<f64>| f.attitude_covariance().unwrap().m[2][2];
+    let (mut full, mut forgot) = (
+        SqrtEskf::<f64>::new(&params(9.0)),
+        SqrtEskf::<f64>::new(&params(9.0)),
+    );
+    for i in 0..400 {
+        let s = rec.sample(i);
+        full.update(&s, rec.dt(i));
+        if i == 100 {
+            assert!(heading_var(&forgot) < 0.05, "{}", heading_var(&forgot));
+            forgot.forget_field_reference(true);
+        }
+        // From 1 s on a field 20 % stronger, first pointing up (no azimuth) for 0.2 s.
+        let mag = match i {
+            0..100 => s.mag,
+            100..120 => s.acc * (1.2 * s.mag.norm() / s.acc.norm()),
+            _ => s.mag * 1.2,
+        };
+        forgot.update(&ImuSample::new(s.gyr, s.acc, mag), rec.dt(i));
+        if i == 120 {
+            assert!(heading_var(&forgot) >= 0.25, "{}", heading_var(&forgot));
+        }
+        if i >= 120 {
+            assert_eq!(forgot.magnetic_disturbance(), Some(false), "sample {i}");
+        }
+    }
+    let d = (heading(&forgot) - heading(&full)).to_degrees();
+    let gap = (d + 180.0).rem_euclid(360.0) - 180.0;
+    assert!(gap.abs() < 2.0, "{gap}");
+}

@@ -10,7 +10,7 @@ use super::upper_factor::{add_diagonal_noise, carlson_update};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
-use crate::blocks::{field_heading_error, lowpass_gain, magnetic_heading_error, tilt_from_acc};
+use crate::blocks::{field_heading_error, lowpass_gain, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 
@@ -185,16 +185,21 @@ lane_state! {
         candidate_time: T,
         /// How long (s) the field has been rejected without interruption.
         rejected_time: T,
-        /// Azimuth (rad) of the reference field in the 9D frame (0: it points north) and of
-        /// the candidate.
+        /// Azimuth (rad) of the reference field in the 9D frame (0: it points north). An
+        /// adopted field takes the candidate's azimuth, its running mean over `mag_ref_tau`
+        /// (where the field is within a few degrees of vertical the azimuth is undefined and
+        /// the candidate keeps its last one).
         azimuth: T,
         candidate_azimuth: T,
         /// How long (s) the field has matched the reference (or been adopted) without
-        /// interruption.
+        /// interruption; a new reference starts at `mag_settle_time` (it corrects at once).
         undisturbed_time: T,
-        /// Low-passed field norm (input units; 0 until the first usable sample) and dip (rad).
+        /// Low-passed field norm (input units) and dip (rad).
         lowpass_norm: T,
         lowpass_dip: T,
+        /// The lane has a reference: false until its first usable reading, and again after
+        /// `forget_field_reference`.
+        known: T::Mask,
     }
 }
 
@@ -553,6 +558,7 @@ impl<T: Lane> State<T> {
                 undisturbed_time: zero,
                 lowpass_norm: zero,
                 lowpass_dip: zero,
+                known: <T::Mask as Mask>::splat(false),
             },
             initialized: <T::Mask as Mask>::splat(false),
             preset: <T::Mask as Mask>::splat(false),

@@ -5,6 +5,10 @@
 use super::*;
 use crate::filters::StateError;
 
+/// Variance (rad², 30° standard deviation) of a heading offset taken from a single
+/// magnetometer reading: at the start and when a lane takes a new field reference.
+const INITIAL_HEADING_VAR: f64 = 0.25;
+
 impl<T: Lane> SqrtEskf<T> {
     /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
     /// `F·S = [[A, B − dt·R·D], [0, D]]` is still upper triangular, so only `B` changes
@@ -79,17 +83,16 @@ impl<T: Lane> SqrtEskf<T> {
         st.bias = Vec3::select(accepted, st.bias + Vec3::new(dx[3], dx[4], dx[5]), st.bias);
     }
 
-    /// Initialisation from the first usable sample: inclination from gravity, heading
-    /// offset from the magnetometer, low-passes seeded with the sample. Returns the lanes
-    /// that started with this sample.
-    fn initialise(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T::Mask {
+    /// Initialisation from the first usable sample: inclination from gravity, low-passes
+    /// seeded with the sample. The heading offset and the field reference are taken from
+    /// the first usable magnetometer reading by `correct_heading`.
+    fn initialise(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) {
         let st = &mut self.state;
         let fresh = !st.initialized & s.acc_ok;
         // Every assignment below is a per-lane select on `fresh`: skipping the block when no
         // lane starts changes no result and saves the work on every later sample.
         if fresh.any() {
             let zero = T::zero();
-            let one = T::one();
             let (tilt, _) = tilt_from_acc(s.acc);
             // Until now the gyroscope was integrated from the identity (or the preset
             // orientation). A preset orientation, carried by the gyro, is kept; otherwise the
@@ -106,28 +109,9 @@ impl<T: Lane> SqrtEskf<T> {
             st.long.lowpass.seed(fresh, acc_raw);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
             st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
-            let (psi, psi_ok) = magnetic_heading_error(start, s.mag);
-            let mag_fresh = fresh & s.mag_ok & psi_ok;
-            st.heading_offset = T::select(
-                mag_fresh & !st.preset,
-                psi,
-                T::select(fresh, zero, st.heading_offset),
-            );
-            let h = start.rotate(s.mag);
-            let dip = (-h.z).clamp(-one, one).asin();
-            let f = &mut st.field;
-            f.norm = T::select(mag_fresh, s.mag_norm, f.norm);
-            f.dip = T::select(mag_fresh, dip, f.dip);
-            f.candidate_norm = T::select(mag_fresh, s.mag_norm, f.candidate_norm);
-            f.candidate_dip = T::select(mag_fresh, dip, f.candidate_dip);
-            f.lowpass_norm = T::select(mag_fresh, s.mag_norm, f.lowpass_norm);
-            f.lowpass_dip = T::select(mag_fresh, dip, f.lowpass_dip);
-            f.azimuth = T::select(mag_fresh, zero, f.azimuth);
-            f.candidate_azimuth = T::select(mag_fresh, zero, f.candidate_azimuth);
-            // The first field is the reference (it points north): it may correct the
-            // heading at once.
-            f.undisturbed_time =
-                T::select(mag_fresh, self.coef.mag_settle_time, f.undisturbed_time);
+            // The heading offset and the field reference come from the first usable
+            // magnetometer reading, in `correct_heading` (the lane has no reference yet).
+            st.heading_offset = T::select(fresh, zero, st.heading_offset);
             st.factor = Mat::select(
                 fresh & !st.preset_covariance,
                 &self.coef.initial_factor(),
@@ -138,12 +122,11 @@ impl<T: Lane> SqrtEskf<T> {
             st.age = T::select(fresh, zero, st.age);
             st.heading_offset_var = T::select(
                 fresh & !st.preset_covariance,
-                T::from_f64(0.25),
+                T::from_f64(INITIAL_HEADING_VAR),
                 st.heading_offset_var,
             );
             st.initialized |= fresh;
         }
-        fresh
     }
 
     /// Lanes whose accelerometer sample, though within `max_acc`, deviates from the low-passed
@@ -413,8 +396,14 @@ impl<T: Lane> SqrtEskf<T> {
 
     /// Heading offset from the magnetometer (9D): disturbance detection against the learned
     /// field reference, re-acquisition of a new field, and the scalar heading update.
-    fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T, fresh: T::Mask) {
-        let zero = T::zero();
+    ///
+    /// A lane without a reference (a new filter, a magnetometer that starts after the
+    /// accelerometer, or `forget_field_reference`) takes its next usable reading as the
+    /// reference, pointing north, and its heading offset from it with the initial heading
+    /// variance (unless the orientation was preset); that reading does not correct the
+    /// heading. While the field corrects the heading, the reference's azimuth decays to 0
+    /// with `mag_azimuth_tau`.
+    fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T) {
         let one = T::one();
         let dt = s.dt;
         let c = &self.coef;
@@ -429,26 +418,26 @@ impl<T: Lane> SqrtEskf<T> {
         // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
         // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
         let (psi6, psi_ok) = field_heading_error(h);
-        let f = self.state.field;
-        // The tests and the reference see the low-passed norm and dip; the first usable
-        // sample (a lane that started without one) seeds the low-pass.
-        let seed = f.lowpass_norm.simd_eq(zero);
-        // A lane without a reference (its first usable reading came after the start, or
-        // `forget_field_reference`) takes this reading as the reference, pointing north, and
-        // its heading from it as a new filter does (unless the orientation was preset).
-        let seeded = seed & s.mag_ok & psi_ok;
+        let seeded = !self.state.field.known & s.mag_ok & psi_ok;
         let st = &mut self.state;
-        st.heading_offset = T::select(seeded & !st.preset, psi6, st.heading_offset);
+        let heading_from_field = seeded & !st.preset;
+        st.heading_offset = T::select(heading_from_field, psi6, st.heading_offset);
+        st.heading_offset_var = T::select(
+            heading_from_field,
+            st.heading_offset_var.max(T::from_f64(INITIAL_HEADING_VAR)),
+            st.heading_offset_var,
+        );
         let azimuth = (psi6 - st.heading_offset).wrap_pi();
         let use_mag = self.track_field(s, h, azimuth, psi_ok, seeded);
 
         let st = &mut self.state;
-        let apply = use_mag & psi_ok & !fresh;
-        // While the field corrects the heading, its azimuth decays to 0: it becomes north
-        // (at once with `mag_azimuth_tau = 0`).
+        let apply = use_mag & psi_ok & !seeded;
         let az = st.field.azimuth;
-        st.field.azimuth = T::select(apply, az - az * self.per_dt.k_azimuth, az);
-        let psi = (azimuth - st.field.azimuth).wrap_pi();
+        let az = T::select(apply, az - az * self.per_dt.k_azimuth, az);
+        st.field.azimuth = az;
+        // One wrap of the whole difference: with `mag_azimuth_tau = 0` (az = 0) this is the
+        // innovation of a reference that always points north, to the bit.
+        let psi = (psi6 - st.heading_offset - az).wrap_pi();
         let r_mag = self.per_dt.r_mag;
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
@@ -482,15 +471,15 @@ impl<T: Lane> SqrtEskf<T> {
         let dt = s.dt;
         let c = &self.coef;
         let f = self.state.field;
-        let seed = f.lowpass_norm.simd_eq(zero);
-        let k_mag = self.per_dt.k_mag;
-        let lowpass = |y: T, x: T| T::select(seed, x, y + (x - y) * k_mag);
+        // A lane without a reference starts the low-pass at the sample.
+        let keep = one - self.per_dt.k_mag;
+        let lowpass = |y: T, x: T| T::select(f.known, lowpass_step(y, x, keep), x);
         let norm = lowpass(f.lowpass_norm, s.mag_norm);
         let dip = lowpass(f.lowpass_dip, (-h.z).clamp(-one, one).asin());
         let matches = |rn: T, rd: T| {
             (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
         };
-        let ok_ref = matches(f.norm, f.dip) & s.mag_ok;
+        let ok_ref = matches(f.norm, f.dip) & s.mag_ok & f.known;
         let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
         let k_ref = self.per_dt.k_ref;
         let mut nf = f;
@@ -540,9 +529,11 @@ impl<T: Lane> SqrtEskf<T> {
             undisturbed_time: zero,
             lowpass_norm: norm,
             lowpass_dip: dip,
+            known: <T::Mask as Mask>::splat(true),
         };
         nf = Select::select(seeded, &reference, &nf);
         let adopt = adopt | seeded;
+        nf.known = f.known | adopt;
         let matched = ok_ref | adopt;
         nf.undisturbed_time = T::select(matched, f.undisturbed_time + dt, zero);
         // A new reference corrects the heading at once.
@@ -556,6 +547,14 @@ impl<T: Lane> SqrtEskf<T> {
         self.rejections.reject_field(self.state.mag_disturbed);
         use_mag
     }
+}
+
+/// One step of a first-order low-pass from `y` towards the sample `x`, `keep = 1 − k`.
+/// Written `x − (x − y)·keep` rather than `y + (x − y)·k` so that `keep = 0` (a time constant
+/// of 0) gives the sample exactly, whatever the signs and magnitudes.
+#[inline]
+fn lowpass_step<T: Lane>(y: T, x: T, keep: T) -> T {
+    x - (x - y) * keep
 }
 
 /// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
@@ -586,7 +585,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
             Some(self.state)
         };
         let acc_raw = s.acc * s.acc_norm;
-        let fresh = self.initialise(&s, acc_raw);
+        self.initialise(&s, acc_raw);
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let tau = self.lowpass_acc(&s, acc_raw);
@@ -596,7 +595,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         self.correct_bias_at_rest(rest, &mut correction);
         self.inject(correction);
         if self.nine_d {
-            self.correct_heading(&s, w, heading_growth, fresh);
+            self.correct_heading(&s, w, heading_growth);
         }
         if let Some(before) = before {
             let keep = s.step & (before.initialized | self.state.initialized);
@@ -646,7 +645,21 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     /// and sets the heading, as the first reading of a new filter does (unless the
     /// orientation was preset with `set_quat` before the first sample).
     fn forget_field_reference(&mut self, lanes: T::Mask) {
-        let f = &mut self.state.field;
-        f.lowpass_norm = T::select(lanes, T::zero(), f.lowpass_norm);
+        self.state.field.known &= !lanes;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lowpass_step;
+
+    #[test]
+    fn a_low_pass_without_memory_passes_the_sample_exactly() {
+        // `y + (x − y)·1` is 0.10000000000000009 for the first pair.
+        for (y, x) in [(-3.0, 0.1), (1e-17, -0.3), (7.5, 2.0e-3), (-0.2, 0.2)] {
+            assert_eq!(lowpass_step(y, x, 0.0_f64), x);
+            assert_eq!(lowpass_step(y as f32, x as f32, 0.0_f32), x as f32);
+        }
+        assert_eq!(-3.0 + (0.1 - -3.0) * 1.0, 0.10000000000000009);
     }
 }
