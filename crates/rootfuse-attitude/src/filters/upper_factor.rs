@@ -30,71 +30,129 @@ pub(crate) const N: usize = 6;
 /// `j < FIRST`, so those columns of `W` are the identity and are skipped (a measurement of
 /// the bias alone costs half a full update). Returns (updated factor, `U·f` (the
 /// unnormalised gain: `K = U·f/α_n`), `α_n` (the innovation variance)). Lanes with `r ≤ 0`
-/// come out non-finite; the caller discards them.
-#[inline]
+/// come out non-finite. The filter runs the two halves itself ([`carlson_gains`], then
+/// [`carlson_apply`] in place where the gate accepts); this composition is what the tests
+/// check against the covariance update `P − P·hᵀ·h·P/α`.
+#[cfg(test)]
 pub(crate) fn carlson_update<T: Lane, const FIRST: usize>(
     u: &Mat<T, N, N>,
     h: &[T; N],
     r: T,
 ) -> (Mat<T, N, N>, [T; N], T) {
-    let root = r.sqrt();
+    let gains = carlson_gains::<T, FIRST>(u, h, r);
+    let mut out = *u;
+    let uf = carlson_apply::<T, FIRST>(
+        &mut out,
+        &gains,
+        <T::Mask as rootfuse_lane::Mask>::splat(true),
+    );
+    (out, uf, gains.innovation_variance())
+}
+
+/// The first half of [`carlson_update`]: `f = Uᵀh` and the running `α_j`, which is all the
+/// χ² gate needs, before anything is written.
+#[derive(Clone, Copy)]
+pub(crate) struct CarlsonGains<T: Lane> {
+    /// `f_j` for `j ≥ FIRST` (zero below).
+    f: [T; N],
+    /// `α_j = r + Σ_{k≤j} f_k²` (`r` below `FIRST`).
+    alpha: [T; N],
+    r: T,
+}
+
+impl<T: Lane> CarlsonGains<T> {
+    /// `α_n = h·P·hᵀ + r`, the innovation variance.
+    #[inline]
+    pub(crate) fn innovation_variance(&self) -> T {
+        self.alpha[N - 1]
+    }
+}
+
+/// `f = Uᵀh` and `α` of [`carlson_update`]. The sums skip the entries `h_i = 0`, `i < FIRST`
+/// (adding their `±0` products to a `+0` sum changes no bit).
+#[inline(always)]
+pub(crate) fn carlson_gains<T: Lane, const FIRST: usize>(
+    u: &Mat<T, N, N>,
+    h: &[T; N],
+    r: T,
+) -> CarlsonGains<T> {
+    let mut g = CarlsonGains {
+        f: [T::zero(); N],
+        alpha: [r; N],
+        r,
+    };
+    let mut alpha = r;
+    for j in FIRST..N {
+        let mut f = T::zero();
+        for i in FIRST..=j {
+            f += u.m[i][j] * h[i];
+        }
+        alpha += f * f;
+        g.f[j] = f;
+        g.alpha[j] = alpha;
+    }
+    g
+}
+
+/// The second half of [`carlson_update`]: `U ← U·W` in place, in the lanes `accept` (the
+/// others keep `U` bit for bit). Returns `U·f` of the factor before the update.
+#[inline(always)]
+pub(crate) fn carlson_apply<T: Lane, const FIRST: usize>(
+    u: &mut Mat<T, N, N>,
+    g: &CarlsonGains<T>,
+    accept: T::Mask,
+) -> [T; N] {
+    let root = g.r.sqrt();
     let mut c = Carlson {
-        out: *u,
         w: [T::zero(); N],
-        alpha: r,
         root,
         inv_root: T::one() / root,
+        accept,
     };
     // `FIRST` is a constant: the tests fold away.
     if FIRST == 0 {
-        c.column::<0>(u, h);
+        c.column::<0>(u, g);
     }
     if FIRST <= 1 {
-        c.column::<1>(u, h);
+        c.column::<1>(u, g);
     }
     if FIRST <= 2 {
-        c.column::<2>(u, h);
+        c.column::<2>(u, g);
     }
     if FIRST <= 3 {
-        c.column::<3>(u, h);
+        c.column::<3>(u, g);
     }
     if FIRST <= 4 {
-        c.column::<4>(u, h);
+        c.column::<4>(u, g);
     }
-    c.column::<5>(u, h);
-    (c.out, c.w, c.alpha)
+    c.column::<5>(u, g);
+    c.w
 }
 
-/// The running quantities of [`carlson_update`] after the columns done so far.
+/// The running quantities of [`carlson_apply`] after the columns done so far.
 struct Carlson<T: Lane> {
-    out: Mat<T, N, N>,
     /// `Σ_{k<j} U_{·k}·f_k`: the gain accumulated over the columns done so far.
     w: [T; N],
-    /// `α_{j−1}`, its square root and the inverse of that.
-    alpha: T,
+    /// `√α_{j−1}` and its inverse.
     root: T,
     inv_root: T,
+    accept: T::Mask,
 }
 
 impl<T: Lane> Carlson<T> {
     /// Column `J` of `U·W` (a constant, so the triangular loops unroll).
     #[inline(always)]
-    fn column<const J: usize>(&mut self, u: &Mat<T, N, N>, h: &[T; N]) {
-        let mut f = T::zero();
-        for i in 0..=J {
-            f += u.m[i][J] * h[i];
-        }
-        let alpha = self.alpha + f * f;
-        let root = alpha.sqrt();
+    fn column<const J: usize>(&mut self, u: &mut Mat<T, N, N>, g: &CarlsonGains<T>) {
+        let f = g.f[J];
+        let root = g.alpha[J].sqrt();
         let inv_root = T::one() / root;
         let beta = self.root * inv_root;
         let gamma = f * inv_root * self.inv_root;
         for i in 0..=J {
             let uij = u.m[i][J];
-            self.out.m[i][J] = beta * uij - gamma * self.w[i];
+            u.m[i][J] = T::select(self.accept, beta * uij - gamma * self.w[i], uij);
             self.w[i] += uij * f;
         }
-        self.alpha = alpha;
         self.root = root;
         self.inv_root = inv_root;
     }

@@ -6,7 +6,7 @@
 // formulas are written); iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::upper_factor::{add_diagonal_noise, carlson_update};
+use super::upper_factor::{add_diagonal_noise, carlson_apply, carlson_gains};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };

@@ -70,6 +70,16 @@ impl<T: Lane> LongWindow<T> {
     }
 }
 
+/// One sample in the quasi-inertial frame `I`, which both windows low-pass.
+pub(super) struct InertialSample<T: Lane> {
+    /// Specific force, m/s².
+    pub force: Vec3<T>,
+    /// Sensor-to-`I` rotation (the strapdown orientation).
+    pub rotation: Mat<T, 3, 3>,
+    /// How far the start-up has gone, in `[0, 1]` (the windows' time constants ramp with it).
+    pub ramp: T,
+}
+
 /// One sample's inclination measurement (see [`SqrtEskf::inclination_measurement`]).
 pub(super) struct InclinationMeasurement<T: Lane> {
     /// The horizontal innovation (earth frame, rad) and the lanes where it has a direction.
@@ -94,23 +104,21 @@ impl<T: Lane> SqrtEskf<T> {
     pub(super) fn lowpass_long(
         &mut self,
         s: &Screened<T>,
-        acc_raw: Vec3<T>,
+        inertial: &InertialSample<T>,
         translation2: T,
         rate: Vec3<T>,
         rest: T::Mask,
     ) -> T {
-        let ramp = (self.state.age / self.coef.startup_time).min(T::one());
+        let ramp = inertial.ramp;
         let tau = self.coef.tau_acc_long * ramp;
         let k = if ramp.simd_lt(T::one()).any() {
             lowpass_gain(s.dt, tau * T::from_f64(0.5))
         } else {
             self.per_dt.k_acc_long
         };
-        let st = &mut self.state;
-        let a_i = st.strapdown.rotate(acc_raw);
-        let rg = st.strapdown.to_rotation_matrix();
-        let w = &mut st.long;
-        w.lowpass.step(k, s.acc_ok, a_i, &rg);
+        let w = &mut self.state.long;
+        w.lowpass
+            .step(k, s.acc_ok, inertial.force, &inertial.rotation);
         let kw = self.per_dt.k_window;
         let learn = s.acc_ok & !rest & translation2.is_finite();
         let translation = translation2.sqrt().max(T::from_f64(TRANSLATION_FLOOR));
@@ -141,14 +149,14 @@ impl<T: Lane> SqrtEskf<T> {
     pub(super) fn inclination_measurement(
         &mut self,
         s: &Screened<T>,
-        acc_raw: Vec3<T>,
+        inertial: &InertialSample<T>,
         tau: T,
         (translation2, rate, rest): (T, Vec3<T>, T::Mask),
     ) -> InclinationMeasurement<T> {
         let on = self.two_windows();
         let short_lag = Mat::from_fn(|i, k| tau * self.state.window.rot.m[i][k]);
         let (acc_lp, lag, short_error2) = if on.any() {
-            let tau_long = self.lowpass_long(s, acc_raw, translation2, rate, rest);
+            let tau_long = self.lowpass_long(s, inertial, translation2, rate, rest);
             let weight = self.long_window_weight();
             let st = &self.state;
             let blend = |a: T, b: T| T::select(on, a + (b - a) * weight, a);

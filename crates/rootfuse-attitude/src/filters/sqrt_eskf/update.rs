@@ -42,8 +42,8 @@ impl<T: Lane> SqrtEskf<T> {
         add_diagonal_noise(s, &[qt_xy, qt_xy, qt, qb, qb, qb]);
     }
 
-    /// Carlson's square-root scalar update ([`carlson_update`]: the factor stays upper
-    /// triangular) with measurement row `h` (zero before index `FIRST`), innovation `nu` and
+    /// Carlson's square-root scalar update ([`carlson_gains`], then [`carlson_apply`] where
+    /// the gate accepts: the factor stays upper triangular) with measurement row `h` (zero before index `FIRST`), innovation `nu` and
     /// variance `r`, applied where `apply`; the χ² gate (`gate` standard deviations) is
     /// tested here. Returns (state correction `δx`, lanes accepted).
     fn scalar_update<const FIRST: usize>(
@@ -54,18 +54,18 @@ impl<T: Lane> SqrtEskf<T> {
         gate: T,
         apply: T::Mask,
     ) -> ([T; 6], T::Mask, T) {
-        let (s_new, sf, alpha) = carlson_update::<T, FIRST>(&self.state.factor, &h, r);
+        let gains = carlson_gains::<T, FIRST>(&self.state.factor, &h, r);
+        let alpha = gains.innovation_variance();
         let in_gate = (nu * nu).simd_le(gate * gate * alpha);
         // With `r > 0` and a finite `α` (hence finite `f`), every entry of the new factor is
         // finite (`|W_jj| ≤ 1`, `W_ij` bounded): checking `α` and `ν` is enough.
         let ok = apply & r.simd_gt(T::zero()) & alpha.is_finite() & nu.is_finite();
         let accept = ok & in_gate;
-        let factor = &mut self.state.factor;
-        for i in 0..6 {
-            for j in i..6 {
-                factor.m[i][j] = T::select(accept, s_new.m[i][j], factor.m[i][j]);
-            }
+        // The gate decides before the factor is written: where no lane accepts, nothing is.
+        if !accept.any() {
+            return ([T::zero(); 6], accept, alpha);
         }
+        let sf = carlson_apply::<T, FIRST>(&mut self.state.factor, &gains, accept);
         let k = nu / T::select(accept, alpha, T::one());
         let dx = core::array::from_fn(|i| T::select(accept, sf[i] * k, T::zero()));
         (dx, accept, alpha)
@@ -189,31 +189,44 @@ impl<T: Lane> SqrtEskf<T> {
         let c = &self.coef;
         let reacquire = self.state.acc_rejected_time.simd_gt(c.acc_reject_time);
         let starting = self.state.age.simd_lt(c.startup_time);
-        let extra = T::select(
-            reacquire,
-            c.reacquire_std,
-            // A preset with its own covariance is not a wrong first sample: no inflation.
+        // A preset with its own covariance is not a wrong first sample: no inflation.
+        let inflating = starting & !self.state.preset_covariance;
+        let startup_std = if inflating.any() {
             T::select(
-                starting & !self.state.preset_covariance,
+                inflating,
                 c.reacquire_std * (dt / c.startup_time).sqrt(),
                 zero,
-            ),
-        );
+            )
+        } else {
+            zero
+        };
+        let extra = T::select(reacquire, c.reacquire_std, startup_std);
         let extra_b = T::select(reacquire | self.state.bias_step, c.init_bias_std, zero);
         self.state.age += dt;
         // The 9D heading offset must follow the 6D heading drift: its variance grows by
         // what the time update adds to the 6D heading variance (gyro noise and the
         // earth-vertical bias uncertainty), plus `heading_walk` for magnetic model errors.
-        let pzz_before = row_norm2(&self.state.factor, 2);
-        self.time_update(&r6, dt, extra, extra_b);
-        let heading_growth = (row_norm2(&self.state.factor, 2) - pzz_before).max(zero);
+        // (6D has no heading offset.)
+        let heading_growth = if self.nine_d {
+            let pzz_before = row_norm2(&self.state.factor, 2);
+            self.time_update(&r6, dt, extra, extra_b);
+            (row_norm2(&self.state.factor, 2) - pzz_before).max(zero)
+        } else {
+            self.time_update(&r6, dt, extra, extra_b);
+            zero
+        };
         self.state.acc_rejected_time = T::select(reacquire, zero, self.state.acc_rejected_time);
         (w, heading_growth, starting)
     }
 
     /// Low-pass of the specific force and of the rotation in the quasi-inertial frame.
-    /// Returns the low-pass time constant τ, s.
-    fn lowpass_acc(&mut self, s: &Screened<T>, acc_raw: Vec3<T>) -> T {
+    /// Returns the low-pass time constant τ, s, and the sample in that frame (the long
+    /// window steps with it too).
+    fn lowpass_acc(
+        &mut self,
+        s: &Screened<T>,
+        acc_raw: Vec3<T>,
+    ) -> (T, two_windows::InertialSample<T>) {
         let st = &mut self.state;
         // The low-pass time constant grows linearly over the start-up phase, so the first
         // seconds follow the accelerometer (and a wrong start is not frozen into the average).
@@ -227,10 +240,14 @@ impl<T: Lane> SqrtEskf<T> {
         } else {
             self.per_dt.k_acc
         };
-        let a_i = st.strapdown.rotate(acc_raw);
-        let rg = st.strapdown.to_rotation_matrix();
-        st.window.step(k_acc, s.acc_ok, a_i, &rg);
-        tau
+        let sample = two_windows::InertialSample {
+            force: st.strapdown.rotate(acc_raw),
+            rotation: st.strapdown.to_rotation_matrix(),
+            ramp,
+        };
+        st.window
+            .step(k_acc, s.acc_ok, sample.force, &sample.rotation);
+        (tau, sample)
     }
 
     /// The horizontal rotation vector (earth frame, rad) that turns the low-passed specific
@@ -588,8 +605,8 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         self.initialise(&s, acc_raw);
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
-        let tau = self.lowpass_acc(&s, acc_raw);
-        let measured = self.inclination_measurement(&s, acc_raw, tau, (translation2, w, rest));
+        let (tau, inertial) = self.lowpass_acc(&s, acc_raw);
+        let measured = self.inclination_measurement(&s, &inertial, tau, (translation2, w, rest));
         self.detect_bias_step(&s, starting, measured.innovation);
         let mut correction = self.correct_inclination(&s, &measured, starting);
         self.correct_bias_at_rest(rest, &mut correction);
