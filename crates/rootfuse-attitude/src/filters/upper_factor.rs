@@ -158,34 +158,50 @@ impl<T: Lane> Carlson<T> {
     }
 }
 
-/// `U'` upper triangular with a non-negative diagonal and `U'·U'ᵀ = U·Uᵀ + diag(q)²`, for an
-/// upper-triangular `u`: the square-root time update's noise step, by Householder reflections
-/// from the right over `[U, diag(q)]` processed from the last row up. Row `i`'s reflection
-/// mixes column `i` of `U` only with the noise columns `k ≥ i` (the others are still zero in
-/// rows `≤ i`), and touches rows `0..=i` only, so it costs a fraction of a general
-/// `N×2N` re-triangularisation. A zero row stays zero.
+/// `U'` upper triangular with a non-negative diagonal and `U'·U'ᵀ = U·Uᵀ + diag(q, 0)²`, for
+/// an upper-triangular `u` and noise on the first `M` states: the square-root time update's
+/// noise step, by Householder reflections from the right over `[U, diag(q)]` processed from
+/// row `M − 1` up (rows `≥ M` have no noise: their reflection is the identity). Row `i`'s
+/// reflection mixes column `i` of `U` only with the noise columns `i ≤ k < M` (the others
+/// are still zero in rows `≤ i`), and touches rows `0..=i` only, so it costs a fraction of a
+/// general `N×(N+M)` re-triangularisation, and noise on the first three states alone a
+/// fraction of noise on all six. A zero row stays zero.
 #[inline]
-pub(crate) fn add_diagonal_noise<T: Lane>(u: &mut Mat<T, N, N>, q: &[T; N]) {
+pub(crate) fn add_diagonal_noise<T: Lane, const M: usize>(u: &mut Mat<T, N, N>, q: &[T; M]) {
     // noise[p][k]: row p of noise column k (initially diag(q)).
-    let mut noise = [[T::zero(); N]; N];
-    for k in 0..N {
+    let mut noise = [[T::zero(); M]; N];
+    for k in 0..M {
         noise[k][k] = q[k];
     }
-    fold_row::<T, 5>(u, &mut noise);
-    fold_row::<T, 4>(u, &mut noise);
-    fold_row::<T, 3>(u, &mut noise);
-    fold_row::<T, 2>(u, &mut noise);
-    fold_row::<T, 1>(u, &mut noise);
-    fold_row::<T, 0>(u, &mut noise);
+    // `M` is a constant: the tests fold away.
+    if M > 5 {
+        fold_row::<T, 5, M>(u, &mut noise);
+    }
+    if M > 4 {
+        fold_row::<T, 4, M>(u, &mut noise);
+    }
+    if M > 3 {
+        fold_row::<T, 3, M>(u, &mut noise);
+    }
+    if M > 2 {
+        fold_row::<T, 2, M>(u, &mut noise);
+    }
+    if M > 1 {
+        fold_row::<T, 1, M>(u, &mut noise);
+    }
+    fold_row::<T, 0, M>(u, &mut noise);
 }
 
 /// One reflection of [`add_diagonal_noise`]: row `I` (a constant, so the loops unroll).
 #[inline(always)]
-fn fold_row<T: Lane, const I: usize>(u: &mut Mat<T, N, N>, noise: &mut [[T; N]; N]) {
+fn fold_row<T: Lane, const I: usize, const M: usize>(
+    u: &mut Mat<T, N, N>,
+    noise: &mut [[T; M]; N],
+) {
     let zero = T::zero();
     let x0 = u.m[I][I];
     let mut tail = zero;
-    for k in I..N {
+    for k in I..M {
         tail += noise[I][k] * noise[I][k];
     }
     let norm = (x0 * x0 + tail).sqrt();
@@ -200,7 +216,7 @@ fn fold_row<T: Lane, const I: usize>(u: &mut Mat<T, N, N>, noise: &mut [[T; N]; 
     let flip = pivot.simd_lt(zero);
     for p in 0..I {
         let mut d = u.m[p][I] * v0;
-        for k in I..N {
+        for k in I..M {
             d += noise[p][k] * noise[I][k];
         }
         let d = d * beta;
@@ -208,7 +224,7 @@ fn fold_row<T: Lane, const I: usize>(u: &mut Mat<T, N, N>, noise: &mut [[T; N]; 
         // Column sign flipped with the pivot's, so the diagonal is non-negative
         // (U·Uᵀ does not change).
         u.m[p][I] = T::select(flip, -upi, upi);
-        for k in I..N {
+        for k in I..M {
             noise[p][k] -= d * noise[I][k];
         }
     }
@@ -294,6 +310,26 @@ mod tests {
             prop_assert!(max_diff(&(u * u.transpose()), &expected) <= 1e-9 * (1.0 + expected.max_abs()));
             for i in 0..N {
                 prop_assert!(u.m[i][i] >= 0.0);
+                for j in 0..i {
+                    prop_assert_eq!(u.m[i][j], 0.0);
+                }
+            }
+        }
+
+        /// Noise on the first three states only: `U·Uᵀ + diag(q, 0, 0, 0)²`.
+        #[test]
+        fn noise_on_the_leading_states_is_added_exactly(
+            v in prop::collection::vec(-2.0..2.0f64, 21),
+            q in prop::array::uniform3(0.0..1.0f64),
+        ) {
+            let mut u = upper(&v);
+            let mut expected = u * u.transpose();
+            for k in 0..3 {
+                expected.m[k][k] += q[k] * q[k];
+            }
+            add_diagonal_noise(&mut u, &q);
+            prop_assert!(max_diff(&(u * u.transpose()), &expected) <= 1e-9 * (1.0 + expected.max_abs()));
+            for i in 0..N {
                 for j in 0..i {
                     prop_assert_eq!(u.m[i][j], 0.0);
                 }

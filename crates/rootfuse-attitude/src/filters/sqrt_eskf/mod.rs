@@ -28,6 +28,13 @@ params! {
         gyr_noise: f64 = 0.005, "rad/√s", [1e-9, 10.0];
         /// Gyro-bias random-walk density.
         bias_walk: f64 = 1e-5, "rad/s/√s", [0.0, 10.0];
+        /// The bias random walk's noise is folded into the covariance factor every this many
+        /// samples, the variance of the samples between accumulated (and at once where a
+        /// bias step or re-acquisition inflates the bias); the attitude noise every sample.
+        /// The fold of all six states costs about a fifth of an update, the attitude's alone
+        /// a sixth of that. 1 is every sample. The accuracy cost of 2, 4 and 8 is in
+        /// `docs/flagship_cost.md`.
+        bias_noise_every: f64 = 8.0, "samples", [1.0, 1e6];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
         tau_acc: f64 = 2.0, "s", [0.0, 100.0];
         /// Time constant of a second, longer accelerometer window (0: one window). The two
@@ -245,6 +252,10 @@ lane_state! {
         bias: Vec3<T>,
         /// Covariance factor `S` of `[δθ, δb]`: `P = S·Sᵀ`.
         factor: Mat<T, 6, 6>,
+        /// Bias random-walk variance (rad²/s², per axis) not yet folded into `S`, and the
+        /// samples it has accumulated over (`bias_noise_every`).
+        bias_noise_pending: T,
+        bias_noise_samples: T,
         /// The `tau_acc` window.
         window: InertialLowpass<T>,
         /// The second accelerometer window (`tau_acc_long`) and its motion measures.
@@ -297,6 +308,7 @@ lane_state! {
     struct Coefficients<T: Lane> {
         gyr_noise: T,
         bias_walk: T,
+        bias_noise_every: T,
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,
@@ -372,6 +384,7 @@ impl<T: Lane> Coefficients<T> {
         Self {
             gyr_noise: p.coef(|p| p.gyr_noise),
             bias_walk: p.coef(|p| p.bias_walk),
+            bias_noise_every: p.coef(|p| p.bias_noise_every),
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),
@@ -532,6 +545,8 @@ impl<T: Lane> State<T> {
             heading_offset_var: T::one(),
             bias: Vec3::zero(),
             factor: coef.initial_factor(),
+            bias_noise_pending: zero,
+            bias_noise_samples: zero,
             window: InertialLowpass::new(),
             long: LongWindow::new(),
             rest_gyr_lp: Vec3::zero(),

@@ -102,6 +102,8 @@ impl<T: Lane> SqrtEskf<T> {
                 };
             }
         }
+        // σ is the whole bias uncertainty: no random walk is still to be added.
+        st.bias_noise_pending = T::zero();
         st.bias = bias;
         Ok(())
     }

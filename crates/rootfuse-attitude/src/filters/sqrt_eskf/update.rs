@@ -39,7 +39,27 @@ impl<T: Lane> SqrtEskf<T> {
             } else {
                 (qt, qb)
             };
-        add_diagonal_noise(s, &[qt_xy, qt_xy, qt, qb, qb, qb]);
+        // The bias noise every `bias_noise_every` samples (at once where the bias is
+        // inflated), with the variance of the samples in between; the attitude noise every
+        // sample. Where nothing is pending, `qb` itself (so 1 gives the bits of folding
+        // every sample).
+        let pending = self.state.bias_noise_pending;
+        let samples = self.state.bias_noise_samples + T::one();
+        let s = &mut self.state.factor;
+        let due = samples.simd_ge(self.coef.bias_noise_every) | extra_bias_std.simd_ne(T::zero());
+        if due.any() {
+            let qb = T::select(pending.simd_eq(T::zero()), qb, (pending + qb * qb).sqrt());
+            let mut all = *s;
+            add_diagonal_noise(&mut all, &[qt_xy, qt_xy, qt, qb, qb, qb]);
+            if !due.all() {
+                add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
+            }
+            *s = Mat::select(due, &all, s);
+        } else {
+            add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
+        }
+        self.state.bias_noise_pending = T::select(due, T::zero(), pending + qb * qb);
+        self.state.bias_noise_samples = T::select(due, T::zero(), samples);
     }
 
     /// Carlson's square-root scalar update ([`carlson_gains`], then [`carlson_apply`] where
