@@ -568,7 +568,10 @@ impl<T: Lane> SqrtEskf<T> {
             lowpass_dip: dip,
             known: <T::Mask as Mask>::splat(true),
         };
-        nf = Select::select(seeded, &reference, &nf);
+        // (Selects skipped where every lane would keep one side: the same bits.)
+        if seeded.any() {
+            nf = Select::select(seeded, &reference, &nf);
+        }
         let adopt = adopt | seeded;
         nf.known = f.known | adopt;
         let matched = ok_ref | adopt;
@@ -577,7 +580,11 @@ impl<T: Lane> SqrtEskf<T> {
         let settled = nf.undisturbed_time.max(c.mag_settle_time);
         nf.undisturbed_time = T::select(seeded, settled, nf.undisturbed_time);
         let use_mag = matched & s.mag_ok & nf.undisturbed_time.simd_ge(c.mag_settle_time);
-        self.state.field = Select::select(s.mag_ok, &nf, &f);
+        self.state.field = if s.mag_ok.all() {
+            nf
+        } else {
+            Select::select(s.mag_ok, &nf, &f)
+        };
         // Disturbed: a usable sample that does not correct the heading, because the field
         // does not match the reference or has not matched it for `mag_settle_time` yet.
         self.state.mag_disturbed = s.mag_ok & !use_mag;
