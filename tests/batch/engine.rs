@@ -391,7 +391,8 @@ fn covariance_and_flags_equal_scalar_runs() {
 /// Channels with their own parameters (`Batch::with_channel_specs`): each equals a scalar run
 /// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, with 6D and
 /// 9D channels interleaved (two structural classes). The flagship's lanes mix one and two
-/// accelerometer windows (`tau_acc_long` 0 beside 4 and 6 s), whose blend is a per-lane select.
+/// accelerometer windows (`tau_acc_long` 0 beside 4 and 6 s), whose blend is a per-lane select,
+/// and lanes that correct their inclination every 1, 3 and 8 samples.
 #[test]
 fn per_channel_specs_equal_scalar_runs() {
     let recs = recordings(11);
@@ -399,6 +400,8 @@ fn per_channel_specs_equal_scalar_runs() {
         ("mahony", "kp", [0.5, 2.0, 0.1]),
         ("ekf", "gyr_noise", [0.01, 0.05, 0.002]),
         ("sqrt-eskf", "tau_acc_long", [0.0, 4.0, 6.0]),
+        // Lanes that correct their inclination at different samples.
+        ("sqrt-eskf", "acc_update_every", [1.0, 3.0, 8.0]),
     ] {
         // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
         let specs: Vec<FilterSpec> = (0..recs.len())

@@ -66,6 +66,23 @@ impl<T: Lane> CarlsonGains<T> {
     pub(crate) fn innovation_variance(&self) -> T {
         self.alpha[N - 1]
     }
+
+    /// The same `f = Uᵀh` with measurement variance `r`: `α_j = r + Σ_{k≤j} f_k²`, summed as
+    /// [`carlson_gains`] sums (so the `r` it was made with gives the same bits).
+    #[inline(always)]
+    pub(crate) fn with_noise<const FIRST: usize>(&self, r: T) -> Self {
+        let mut g = Self {
+            f: self.f,
+            alpha: [r; N],
+            r,
+        };
+        let mut alpha = r;
+        for j in FIRST..N {
+            alpha += self.f[j] * self.f[j];
+            g.alpha[j] = alpha;
+        }
+        g
+    }
 }
 
 /// `f = Uᵀh` and `α` of [`carlson_update`]. The sums skip the entries `h_i = 0`, `i < FIRST`

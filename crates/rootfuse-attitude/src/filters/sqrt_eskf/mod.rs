@@ -20,6 +20,9 @@ mod update;
 mod set_state;
 // The second, longer accelerometer window and the weight that blends the two.
 mod two_windows;
+// Coefficients cached while the time step repeats.
+mod per_dt;
+use per_dt::{PerDt, PerInterval};
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -35,6 +38,14 @@ params! {
         /// a sixth of that. 1 is every sample. The accuracy cost of 2, 4 and 8 is in
         /// `docs/flagship_cost.md`.
         bias_noise_every: f64 = 8.0, "samples", [1.0, 1e6];
+        /// The inclination is corrected every this many samples with a usable accelerometer
+        /// (every sample during the start-up), with the information of all of them: the
+        /// measurement variance is `acc_noise²` over their summed time. The low-passes step
+        /// every sample, so the low-passed gravity a correction reads is as current as ever;
+        /// the χ² gate and the running means the correction feeds are tested and updated at
+        /// the corrections. 1 is every sample. The accuracy and the cost of 1, 2, 4 and 8 are
+        /// in `docs/flagship_cost.md`.
+        acc_update_every: f64 = 8.0, "samples", [1.0, 1e6];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
         tau_acc: f64 = 2.0, "s", [0.0, 100.0];
         /// Time constant of a second, longer accelerometer window (0: one window). The two
@@ -267,6 +278,10 @@ lane_state! {
         rest_timer: T,
         /// How long (s) every inclination measurement has been gated.
         acc_rejected_time: T,
+        /// Samples with a usable accelerometer, and their summed time (s), since the last
+        /// inclination correction (`acc_update_every`).
+        inclination_samples: T,
+        inclination_time: T,
         /// Running mean (time constant `bias_step_window`) of the two horizontal inclination
         /// innovations before correction, rad.
         innovation_mean_x: T,
@@ -309,6 +324,7 @@ lane_state! {
         gyr_noise: T,
         bias_walk: T,
         bias_noise_every: T,
+        acc_update_every: T,
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,
@@ -385,6 +401,7 @@ impl<T: Lane> Coefficients<T> {
             gyr_noise: p.coef(|p| p.gyr_noise),
             bias_walk: p.coef(|p| p.bias_walk),
             bias_noise_every: p.coef(|p| p.bias_noise_every),
+            acc_update_every: p.coef(|p| p.acc_update_every),
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),
@@ -452,87 +469,6 @@ struct Correction<T: Lane> {
     accepted: T::Mask,
 }
 
-/// The coefficients that depend on the time step only, per lane, for the `dt` they were
-/// computed for: with a constant `dt` (the usual case) they are computed once instead of
-/// every sample (`exp`, `sqrt` and divisions). Bit for bit what the formulas give, so
-/// caching changes no result; not part of the state, a lane that skips a sample needs no
-/// restore.
-#[derive(Clone, Copy, Debug)]
-struct PerDt<T: Lane> {
-    /// The `dt` of the screened sample (zero where it is skipped), s.
-    dt: T,
-    /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step.
-    gyr_std: T,
-    bias_std: T,
-    /// Per-sample measurement variances from the noise densities, `density²/dt` (`dt = 0`,
-    /// a skipped sample, divides by 1: finite, and discarded).
-    r_acc: T,
-    r_rest: T,
-    r_mag: T,
-    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference, the
-    /// accelerometer low-pass after the start-up (each stage τ/2) and the innovation
-    /// covariance matching (`acc_adapt_window`) and the model-error mean square
-    /// (`model_error_window`).
-    k_rest: T,
-    k_ref: T,
-    k_mag: T,
-    k_azimuth: T,
-    k_acc: T,
-    k_adapt: T,
-    /// The long window's low-pass gain (each stage `tau_acc_long/2`) and its motion
-    /// measures' gain (`window_tau`).
-    k_acc_long: T,
-    k_window: T,
-    k_model: T,
-}
-
-impl<T: Lane> PerDt<T> {
-    fn new(c: &Coefficients<T>) -> Self {
-        Self::compute(T::zero(), c)
-    }
-
-    fn compute(dt: T, c: &Coefficients<T>) -> Self {
-        let sdt = dt.sqrt();
-        let per_sample = T::select(dt.simd_gt(T::zero()), dt, T::one());
-        // The long window's gains only where some lane runs it (a jittered `dt` recomputes
-        // every gain at every sample).
-        let two_windows = c.tau_acc_long.simd_gt(T::zero()).any();
-        Self {
-            dt,
-            gyr_std: c.gyr_noise * sdt,
-            bias_std: c.bias_walk * sdt,
-            r_acc: c.acc_var / per_sample,
-            r_rest: c.rest_var / per_sample,
-            r_mag: c.mag_var / per_sample,
-            k_rest: lowpass_gain(dt, c.rest_tau),
-            k_ref: lowpass_gain(dt, c.mag_ref_tau),
-            k_mag: lowpass_gain(dt, c.mag_lowpass_tau),
-            k_azimuth: lowpass_gain(dt, c.mag_azimuth_tau),
-            k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
-            k_adapt: lowpass_gain(dt, c.acc_adapt_window),
-            k_acc_long: if two_windows {
-                lowpass_gain(dt, c.tau_acc_long * T::from_f64(0.5))
-            } else {
-                T::zero()
-            },
-            k_window: if two_windows {
-                lowpass_gain(dt, c.window_tau)
-            } else {
-                T::zero()
-            },
-            k_model: lowpass_gain(dt, c.model_error_window),
-        }
-    }
-
-    /// Recomputes every lane when any lane's `dt` differs from the cached one.
-    #[inline]
-    fn refresh(&mut self, dt: T, c: &Coefficients<T>) {
-        if dt.simd_ne(self.dt).any() {
-            *self = Self::compute(dt, c);
-        }
-    }
-}
-
 impl<T: Lane> State<T> {
     /// The state of a new filter: nothing seen yet, covariance from the initial standard
     /// deviations.
@@ -553,6 +489,8 @@ impl<T: Lane> State<T> {
             rest_acc_lp: Vec3::zero(),
             rest_timer: zero,
             acc_rejected_time: zero,
+            inclination_samples: zero,
+            inclination_time: zero,
             innovation_mean_x: zero,
             innovation_mean_y: zero,
             innovation_nis: T::one(),
@@ -708,6 +646,7 @@ pub struct SqrtEskf<T: Lane> {
     limits: ScreenLimits,
     rejections: Rejections<T>,
     per_dt: PerDt<T>,
+    per_interval: PerInterval<T>,
     params: SqrtEskfParams,
 }
 
@@ -726,6 +665,7 @@ impl<T: Lane> SqrtEskf<T> {
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
             per_dt,
+            per_interval: PerInterval::new(&coef),
             params: p.first().clone(),
         }
     }

@@ -138,25 +138,18 @@ impl<T: Lane> SqrtEskf<T> {
     /// [`long_window_weight`](Self::long_window_weight): the low-passed specific forces
     /// (both along gravity within the motion left in them, so blending the vectors blends
     /// the innovations to first order, with one innovation to compute) and the lag terms
-    /// `τ·LP(R)` alike. The motion measures are `translation2` (`|a − â|²`, (m/s²)²), the
-    /// bias-corrected `rate` (rad/s) and the lanes at `rest`.
+    /// `τ·LP(R)` alike; `tau` and `tau_long` are the windows' time constants at this sample
+    /// (both windows have stepped).
     ///
     /// Also returns what the reported model error learns from (rad², per axis): the mean
     /// square of the `tau_acc` window's innovation. With two windows that is the short
     /// window's (its small-angle `sin²`), not the blend's: the blend leaves less motion in
     /// the innovation but not less error in the estimate, so its innovation would make the
     /// reported covariance overconfident exactly where the long window weighs.
-    pub(super) fn inclination_measurement(
-        &mut self,
-        s: &Screened<T>,
-        inertial: &InertialSample<T>,
-        tau: T,
-        (translation2, rate, rest): (T, Vec3<T>, T::Mask),
-    ) -> InclinationMeasurement<T> {
+    pub(super) fn inclination_measurement(&self, tau: T, tau_long: T) -> InclinationMeasurement<T> {
         let on = self.two_windows();
         let short_lag = Mat::from_fn(|i, k| tau * self.state.window.rot.m[i][k]);
         let (acc_lp, lag, short_error2) = if on.any() {
-            let tau_long = self.lowpass_long(s, inertial, translation2, rate, rest);
             let weight = self.long_window_weight();
             let st = &self.state;
             let blend = |a: T, b: T| T::select(on, a + (b - a) * weight, a);

@@ -63,14 +63,17 @@ impl<T: Lane> SqrtEskf<T> {
     }
 
     /// Carlson's square-root scalar update ([`carlson_gains`], then [`carlson_apply`] where
-    /// the gate accepts: the factor stays upper triangular) with measurement row `h` (zero before index `FIRST`), innovation `nu` and
-    /// variance `r`, applied where `apply`; the χ² gate (`gate` standard deviations) is
-    /// tested here. Returns (state correction `δx`, lanes accepted).
+    /// the gate accepts: the factor stays upper triangular) with measurement row `h` (zero
+    /// before index `FIRST`) and innovation `nu`, applied where `apply`. `r` is one sample's
+    /// measurement variance, `r_update` the variance the update is made with (smaller where
+    /// the measurement stands for several samples: `acc_update_every`). The χ² gate (`gate`
+    /// standard deviations) is tested here, against one sample's innovation variance.
+    /// Returns (state correction `δx`, lanes accepted, that innovation variance).
     fn scalar_update<const FIRST: usize>(
         &mut self,
         h: [T; 6],
         nu: T,
-        r: T,
+        (r, r_update): (T, T),
         gate: T,
         apply: T::Mask,
     ) -> ([T; 6], T::Mask, T) {
@@ -79,14 +82,21 @@ impl<T: Lane> SqrtEskf<T> {
         let in_gate = (nu * nu).simd_le(gate * gate * alpha);
         // With `r > 0` and a finite `α` (hence finite `f`), every entry of the new factor is
         // finite (`|W_jj| ≤ 1`, `W_ij` bounded): checking `α` and `ν` is enough.
-        let ok = apply & r.simd_gt(T::zero()) & alpha.is_finite() & nu.is_finite();
+        let update = gains.with_noise::<FIRST>(r_update);
+        let alpha_update = update.innovation_variance();
+        let ok = apply
+            & r.simd_gt(T::zero())
+            & r_update.simd_gt(T::zero())
+            & alpha.is_finite()
+            & alpha_update.is_finite()
+            & nu.is_finite();
         let accept = ok & in_gate;
         // The gate decides before the factor is written: where no lane accepts, nothing is.
         if !accept.any() {
             return ([T::zero(); 6], accept, alpha);
         }
-        let sf = carlson_apply::<T, FIRST>(&mut self.state.factor, &gains, accept);
-        let k = nu / T::select(accept, alpha, T::one());
+        let sf = carlson_apply::<T, FIRST>(&mut self.state.factor, &update, accept);
+        let k = nu / T::select(accept, alpha_update, T::one());
         let dx = core::array::from_fn(|i| T::select(accept, sf[i] * k, T::zero()));
         (dx, accept, alpha)
     }
@@ -96,6 +106,9 @@ impl<T: Lane> SqrtEskf<T> {
     /// so whether an update ran at all — some are skipped when no lane needs them — is invisible.
     fn inject(&mut self, correction: Correction<T>) {
         let Correction { dx, accepted } = correction;
+        if !accepted.any() {
+            return;
+        }
         let st = &mut self.state;
         let dtheta = Vec3::new(dx[0], dx[1], dx[2]);
         let corrected = (Quat::from_rotation_vector(dtheta) * st.correction).renormalize();
@@ -287,6 +300,22 @@ impl<T: Lane> SqrtEskf<T> {
         ([v.y * scale, -v.x * scale], v_ok)
     }
 
+    /// The lanes that correct their inclination at this sample (`acc_update_every` samples
+    /// with a usable accelerometer since the last correction, or every such sample during the
+    /// start-up) and the usable accelerometer time since the last correction, s, which the
+    /// correction stands for (`dt` where every sample is corrected: `0 + dt`). The count and
+    /// the time start again where a lane corrects.
+    fn inclination_due(&mut self, s: &Screened<T>, starting: T::Mask) -> (T::Mask, T) {
+        let zero = T::zero();
+        let st = &mut self.state;
+        let samples = st.inclination_samples + T::select(s.acc_ok, T::one(), zero);
+        let time = st.inclination_time + T::select(s.acc_ok, s.dt, zero);
+        let due = s.acc_ok & (samples.simd_ge(self.coef.acc_update_every) | starting);
+        st.inclination_samples = T::select(due, zero, samples);
+        st.inclination_time = T::select(due, zero, time);
+        (due, time)
+    }
+
     /// Gyro-bias step detection by innovation consistency: a bias step makes the strapdown
     /// frame drift, and the inclination corrections then chase a persistent, one-signed
     /// innovation, while a consistent filter's innovations average out. The running mean of
@@ -295,12 +324,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// deviations the next time update re-inflates the bias covariance by `init_bias_std`,
     /// and the lag-aware inclination measurement (`H` contains `τ·R̄`) then learns the new
     /// bias within seconds rather than at the random-walk rate. Not during start-up.
-    fn detect_bias_step(
-        &mut self,
-        s: &Screened<T>,
-        starting: T::Mask,
-        (eps, ok): ([T; 2], T::Mask),
-    ) {
+    fn detect_bias_step(&mut self, starting: T::Mask, due: T::Mask, (eps, ok): ([T; 2], T::Mask)) {
         let c = &self.coef;
         let st = &mut self.state;
         // Disabled in every lane (the default): the running means are read nowhere else.
@@ -308,8 +332,8 @@ impl<T: Lane> SqrtEskf<T> {
             st.bias_step = <T::Mask as Mask>::splat(false);
             return;
         }
-        let use_it = s.acc_ok & ok & !starting;
-        let k = lowpass_gain(s.dt, c.bias_step_window);
+        let use_it = due & ok & !starting;
+        let k = self.per_interval.k_bias_step;
         let mx = st.innovation_mean_x + (eps[0] - st.innovation_mean_x) * k;
         let my = st.innovation_mean_y + (eps[1] - st.innovation_mean_y) * k;
         let step = use_it
@@ -335,17 +359,21 @@ impl<T: Lane> SqrtEskf<T> {
     /// The second component's innovation is the first's residual to first order
     /// (`ε_y − δθ_y` of the first correction): the measurement is linearised once per sample,
     /// and the correction is injected once ([`Correction`]), which is what keeps the
-    /// per-sample chain of dependent square roots and rotations short.
+    /// per-sample chain of dependent square roots and rotations short. In the lanes `due`
+    /// only (`acc_update_every`): the gate and the covariance matching judge the innovation
+    /// against one sample's variance, the update is made with the variance of the usable
+    /// accelerometer `time` since the last correction.
     fn correct_inclination(
         &mut self,
-        s: &Screened<T>,
         measured: &two_windows::InclinationMeasurement<T>,
         starting: T::Mask,
+        (due, time): (T::Mask, T),
     ) -> Correction<T> {
         let (eps, v_ok) = measured.innovation;
         let lag = &measured.lag;
         let zero = T::zero();
         let r_nominal = self.per_dt.r_acc;
+        let r_interval = self.per_interval.r_acc;
         // Covariance matching: where the innovations have been larger than predicted, the
         // measurement variance grows by that ratio (bits unchanged where disabled).
         let adapt = self.coef.acc_adapt_window.simd_gt(zero);
@@ -355,22 +383,25 @@ impl<T: Lane> SqrtEskf<T> {
             .max(T::one())
             .min(T::from_f64(1000.0));
         let r_acc = T::select(adapt, r_nominal * scale, r_nominal);
+        let r_update = T::select(adapt, r_interval * scale, r_interval);
         let gate = T::select(starting, T::from_f64(1e6), self.coef.acc_gate);
-        let apply = s.acc_ok & v_ok;
+        let apply = due & v_ok;
         let row = |axis: usize| {
             let mut h = [zero; 6];
             h[axis] = T::one();
             h[3..].copy_from_slice(&lag.m[axis]);
             h
         };
-        let (dx0, accepted0, alpha0) = self.scalar_update::<0>(row(0), eps[0], r_acc, gate, apply);
+        let (dx0, accepted0, alpha0) =
+            self.scalar_update::<0>(row(0), eps[0], (r_acc, r_update), gate, apply);
         let nu1 = eps[1] - dx0[1];
-        let (dx1, accepted1, alpha1) = self.scalar_update::<1>(row(1), nu1, r_acc, gate, apply);
+        let (dx1, accepted1, alpha1) =
+            self.scalar_update::<1>(row(1), nu1, (r_acc, r_update), gate, apply);
         // The model error's mean square (reported with the covariance): the innovation before
         // this sample's correction, per axis (see `inclination_measurement`).
         {
             let e2 = measured.model_error2;
-            let k = self.per_dt.k_model;
+            let k = self.per_interval.k_model;
             let m = self.state.innovation_ms;
             let learn = apply & !starting & e2.is_finite();
             self.state.innovation_ms = T::select(learn, m + (e2 - m) * k, m);
@@ -383,7 +414,7 @@ impl<T: Lane> SqrtEskf<T> {
             let nominal = |alpha: T| alpha - r_acc + r_nominal;
             let nis = (eps[0] * eps[0] / nominal(alpha0) + nu1 * nu1 / nominal(alpha1))
                 * T::from_f64(0.5);
-            let k = self.per_dt.k_adapt;
+            let k = self.per_interval.k_adapt;
             let m = self.state.innovation_nis;
             let learn = adapt & apply & !starting & nis.is_finite();
             self.state.innovation_nis = T::select(learn, m + (nis - m) * k, m);
@@ -391,11 +422,12 @@ impl<T: Lane> SqrtEskf<T> {
         let accepted = accepted0 | accepted1;
         let gated = apply & !accepted;
         self.rejections.gate(gated);
-        // Only an accepted measurement ends a rejection period; a sample without a usable
-        // accelerometer holds the timer (resetting it let a spike or a dropped sample postpone
-        // the re-acquisition by up to `acc_reject_time`).
+        // Only an accepted measurement ends a rejection period; a gated one adds the usable
+        // accelerometer time it stands for, and a sample without a usable accelerometer holds
+        // the timer (resetting it let a spike or a dropped sample postpone the re-acquisition
+        // by up to `acc_reject_time`).
         let t = self.state.acc_rejected_time;
-        self.state.acc_rejected_time = T::select(gated, t + s.dt, T::select(apply, zero, t));
+        self.state.acc_rejected_time = T::select(gated, t + time, T::select(apply, zero, t));
         Correction {
             dx: core::array::from_fn(|i| dx0[i] + dx1[i]),
             accepted,
@@ -424,7 +456,8 @@ impl<T: Lane> SqrtEskf<T> {
         let z = self.state.rest_gyr_lp.to_array()[k]
             - (self.state.bias.to_array()[k] + correction.dx[STATE]);
         let r_rest = self.per_dt.r_rest;
-        let (dx, accepted, _) = self.scalar_update::<STATE>(h, z, r_rest, T::from_f64(1e6), rest);
+        let (dx, accepted, _) =
+            self.scalar_update::<STATE>(h, z, (r_rest, r_rest), T::from_f64(1e6), rest);
         for (total, d) in correction.dx.iter_mut().zip(dx) {
             *total += d;
         }
@@ -633,9 +666,27 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         let rest = self.detect_rest(&s, acc_raw);
         let (w, heading_growth, starting) = self.propagate(&s);
         let (tau, inertial) = self.lowpass_acc(&s, acc_raw);
-        let measured = self.inclination_measurement(&s, &inertial, tau, (translation2, w, rest));
-        self.detect_bias_step(&s, starting, measured.innovation);
-        let mut correction = self.correct_inclination(&s, &measured, starting);
+        let tau_long = if self.two_windows().any() {
+            self.lowpass_long(&s, &inertial, translation2, w, rest)
+        } else {
+            T::zero()
+        };
+        let (due, time) = self.inclination_due(&s, starting);
+        // Where no lane corrects its inclination at this sample, the measurement is not
+        // even formed (`acc_update_every`).
+        let mut correction = if due.any() {
+            self.per_interval
+                .refresh(T::select(due, time, self.per_interval.time), &self.coef);
+            let measured = self.inclination_measurement(tau, tau_long);
+            self.detect_bias_step(starting, due, measured.innovation);
+            self.correct_inclination(&measured, starting, (due, time))
+        } else {
+            self.state.bias_step = <T::Mask as Mask>::splat(false);
+            Correction {
+                dx: [T::zero(); 6],
+                accepted: <T::Mask as Mask>::splat(false),
+            }
+        };
         self.correct_bias_at_rest(rest, &mut correction);
         self.inject(correction);
         if self.nine_d {
