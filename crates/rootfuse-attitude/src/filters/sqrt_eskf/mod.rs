@@ -20,6 +20,8 @@ mod update;
 mod set_state;
 // The second, longer accelerometer window and the weight that blends the two.
 mod two_windows;
+// The 9D heading: the field test and the heading offset.
+mod heading;
 // Coefficients cached while the time step repeats.
 mod per_dt;
 use per_dt::{PerDt, PerInterval};
