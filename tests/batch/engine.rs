@@ -392,7 +392,7 @@ fn covariance_and_flags_equal_scalar_runs() {
 /// with its own spec, bit for bit, in `f32x8` and in the interleaved `X2<f32x8>`, with 6D and
 /// 9D channels interleaved (two structural classes). The flagship's lanes mix one and two
 /// accelerometer windows (`tau_acc_long` 0 beside 4 and 6 s), whose blend is a per-lane select,
-/// and lanes that correct their inclination every 1, 3 and 8 samples.
+/// and lanes that correct their inclination, or test the field, every 1, 3 and 8 samples.
 #[test]
 fn per_channel_specs_equal_scalar_runs() {
     let recs = recordings(11);
@@ -402,6 +402,7 @@ fn per_channel_specs_equal_scalar_runs() {
         ("sqrt-eskf", "tau_acc_long", [0.0, 4.0, 6.0]),
         // Lanes that correct their inclination at different samples.
         ("sqrt-eskf", "acc_update_every", [1.0, 3.0, 8.0]),
+        ("sqrt-eskf", "mag_update_every", [1.0, 3.0, 8.0]),
     ] {
         // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
         let specs: Vec<FilterSpec> = (0..recs.len())

@@ -15,18 +15,18 @@ use rootfuse_io::read_dir;
 const PINNED: &[[f64; 2]] = &[
     [1.277, 0.611], // 02_undisturbed_slow_rotation_B
     [1.281, 3.931], // 04_undisturbed_slow_rotation_with_breaks_A
-    [1.642, 1.532], // 07_undisturbed_fast_rotation_B
-    [3.441, 7.876], // 08_undisturbed_fast_rotation_with_breaks_A
-    [1.365, 1.052], // 10_undisturbed_slow_translation_A
+    [1.650, 1.532], // 07_undisturbed_fast_rotation_B
+    [3.374, 7.876], // 08_undisturbed_fast_rotation_with_breaks_A
+    [1.367, 1.052], // 10_undisturbed_slow_translation_A
     [1.435, 1.382], // 12_undisturbed_slow_translation_C
-    [0.806, 0.667], // 16_undisturbed_fast_translation_B
+    [0.805, 0.667], // 16_undisturbed_fast_translation_B
     [0.777, 0.822], // 18_undisturbed_fast_translation_with_breaks_B
-    [1.282, 0.848], // 24_disturbed_tapping_A
+    [1.281, 0.848], // 24_disturbed_tapping_A
     [6.926, 1.709], // 27_disturbed_phone_vibration_B
-    [1.953, 4.663], // 29_disturbed_stationary_magnet_B
-    [1.852, 3.078], // 31_disturbed_stationary_magnet_D
-    [2.045, 2.355], // 33_disturbed_attached_magnet_2cm
-    [2.709, 2.979], // 35_disturbed_attached_magnet_4cm
+    [1.918, 4.663], // 29_disturbed_stationary_magnet_B
+    [1.845, 3.078], // 31_disturbed_stationary_magnet_D
+    [2.049, 2.355], // 33_disturbed_attached_magnet_2cm
+    [2.672, 2.980], // 35_disturbed_attached_magnet_4cm
 ];
 
 fn total(rec: &Recording, dof: u8, f32_lanes: bool) -> f64 {
@@ -350,4 +350,50 @@ fn correcting_every_eighth_sample_keeps_the_accuracy() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The field tested every `mag_update_every` readings (the default, 4) on their mean: the 9D
+/// mean over the BROAD trials is no worse than testing every reading (measured 2.047° against
+/// 2.057°), and on the undisturbed slow trials (02, 04, 10, 12, 16, 18), where no test can
+/// flip a field decision, the total moves by under 0.01° (measured ≤ 0.002°).
+#[test]
+#[cfg_attr(
+    not(broad_data),
+    ignore = "BROAD data not found (../shared/broad_csv or $ROOTFUSE_BROAD_DIR)"
+)]
+fn testing_the_field_every_fourth_reading_keeps_the_accuracy() {
+    let Some(dir) = broad_dir() else { return };
+    let recs: Vec<Recording> = read_dir(&dir).unwrap();
+    assert_eq!(SqrtEskfParams::default().mag_update_every, 4.0);
+    let score = |rec: &Recording, every: f64| {
+        let p = SqrtEskfParams {
+            mag_update_every: every,
+            ..SqrtEskfParams::default()
+        };
+        let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
+        evaluate(rec, &est, Alignment::NineD)
+            .expect("BROAD trials have truth")
+            .total
+    };
+    let (mut sum4, mut sum1) = (0.0, 0.0);
+    for rec in &recs {
+        let (a, b) = (score(rec, 4.0), score(rec, 1.0));
+        sum4 += a;
+        sum1 += b;
+        let quiet = ["02_", "04_", "10_", "12_", "16_", "18_"];
+        if quiet.iter().any(|p| rec.name.starts_with(p)) {
+            assert!(
+                (a - b).abs() < 0.01,
+                "{}: {a:.4} every 4th reading, {b:.4} every reading",
+                rec.name
+            );
+        }
+    }
+    let n = recs.len() as f64;
+    assert!(
+        sum4 / n <= sum1 / n + 1e-9,
+        "9D mean {:.4} every 4th reading, {:.4} every reading",
+        sum4 / n,
+        sum1 / n
+    );
 }

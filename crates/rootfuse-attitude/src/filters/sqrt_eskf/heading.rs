@@ -14,6 +14,11 @@ impl<T: Lane> SqrtEskf<T> {
     /// variance (unless the orientation was preset); that reading does not correct the
     /// heading. While the field corrects the heading, the reference's azimuth decays to 0
     /// with `mag_azimuth_tau`.
+    ///
+    /// The offset's variance grows at every sample; the field is tested, and the heading
+    /// corrected, every `mag_update_every` usable readings (at once where a lane has no
+    /// reference), each test and correction standing for the usable magnetometer time since
+    /// the last one. Between tests a usable reading is flagged as the last test found the field.
     pub(super) fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T) {
         let one = T::one();
         let dt = s.dt;
@@ -25,11 +30,18 @@ impl<T: Lane> SqrtEskf<T> {
             + c.heading_up_rate_var * w_up * w_up)
             * dt
             + heading_growth;
-        let h = q6.rotate(s.mag);
+        let (due, time, h, norm) = self.heading_due(s, q6.rotate(s.mag));
+        if !due.any() {
+            self.state.mag_disturbed = s.mag_ok & self.state.field_disturbed;
+            self.rejections.reject_field(self.state.mag_disturbed);
+            return;
+        }
+        self.per_heading
+            .refresh(T::select(due, time, self.per_heading.time), &self.coef);
         // The field in the 9D frame is `h` turned by the heading offset about earth-z: its
         // heading error is that of `h` less the offset (no second rotation, no sine/cosine).
         let (psi6, psi_ok) = field_heading_error(h);
-        let seeded = !self.state.field.known & s.mag_ok & psi_ok;
+        let seeded = !self.state.field.known & due & psi_ok;
         let st = &mut self.state;
         let heading_from_field = seeded & !st.preset;
         st.heading_offset = T::select(heading_from_field, psi6, st.heading_offset);
@@ -39,21 +51,22 @@ impl<T: Lane> SqrtEskf<T> {
             st.heading_offset_var,
         );
         let azimuth = (psi6 - st.heading_offset).wrap_pi();
-        let use_mag = self.track_field(s, h, azimuth, psi_ok, seeded);
+        let use_mag = self.track_field(s, (due, time), (h, norm), azimuth, (psi_ok, seeded));
 
         let st = &mut self.state;
         let apply = use_mag & psi_ok & !seeded;
         let az = st.field.azimuth;
-        let az = T::select(apply, az - az * self.per_dt.k_azimuth, az);
+        let az = T::select(apply, az - az * self.per_heading.k_azimuth, az);
         st.field.azimuth = az;
         // One wrap of the whole difference: with `mag_azimuth_tau = 0` (az = 0) this is the
         // innovation of a reference that always points north, to the bit.
         let psi = (psi6 - st.heading_offset - az).wrap_pi();
-        let r_mag = self.per_dt.r_mag;
+        let r_mag = self.per_heading.r_mag;
         let alpha = st.heading_offset_var + r_mag;
         let k = st.heading_offset_var / alpha;
         let m = st.heading_innovation_ms;
-        st.heading_innovation_ms = T::select(apply, m + (psi * psi - m) * self.per_dt.k_model, m);
+        let k_model = self.per_heading.k_model;
+        st.heading_innovation_ms = T::select(apply, m + (psi * psi - m) * k_model, m);
         st.heading_offset = T::select(
             apply,
             (st.heading_offset + k * psi).wrap_pi(),
@@ -66,33 +79,65 @@ impl<T: Lane> SqrtEskf<T> {
         );
     }
 
-    /// The field test of one sample: the low-passed norm and dip against the reference and
-    /// the candidate, re-acquisition, a new reference where `seeded`, and the settle time.
-    /// Returns the lanes whose reading may correct the heading; flags and counts the others.
+    /// The lanes whose field is tested at this sample (`mag_update_every` usable readings
+    /// since the last test, or at once where a lane has no reference), the usable
+    /// magnetometer time since the last test, s (`dt` where every reading is tested:
+    /// `0 + dt`), and the mean of those readings: the unit field `h` in the 6D earth frame
+    /// (`q6·m̂` of each) and the field norm. The mean, not the test's own reading, because
+    /// the readings are noisy and independent (a low-passed gravity is not): one reading
+    /// standing for eight would weigh its noise eightfold. The count, the time and the sums
+    /// start again where a lane tests; a first reading is taken as it is (one reading is its
+    /// own mean, to the bit).
+    fn heading_due(&mut self, s: &Screened<T>, h: Vec3<T>) -> (T::Mask, T, Vec3<T>, T) {
+        let (zero, one) = (T::zero(), T::one());
+        let st = &mut self.state;
+        // A lane without a reference (a new filter, or one told to forget it after a new
+        // calibration) takes the reading as it is: the readings before belong to another field.
+        let first = st.heading_samples.simd_eq(zero) | !st.field.known;
+        let samples = T::select(first, zero, st.heading_samples) + T::select(s.mag_ok, one, zero);
+        let time = T::select(first, zero, st.heading_time) + T::select(s.mag_ok, s.dt, zero);
+        let sum = Vec3::select(first, h, st.mag_sum + h);
+        let norm_sum = T::select(first, s.mag_norm, st.mag_norm_sum + s.mag_norm);
+        let sum = Vec3::select(s.mag_ok, sum, st.mag_sum);
+        let norm_sum = T::select(s.mag_ok, norm_sum, st.mag_norm_sum);
+        let due = s.mag_ok & (samples.simd_ge(self.coef.mag_update_every) | !st.field.known);
+        st.heading_samples = T::select(due, zero, samples);
+        st.heading_time = T::select(due, zero, time);
+        st.mag_sum = sum;
+        st.mag_norm_sum = norm_sum;
+        let inv = one / T::select(due, samples, one);
+        (due, time, sum * inv, norm_sum * inv)
+    }
+
+    /// The field test of the lanes `due`, standing for the usable magnetometer `time` (s)
+    /// since the last, with the mean unit field `h` (6D earth frame) and norm of its
+    /// readings: the low-passed norm and dip against the reference and the candidate,
+    /// re-acquisition, a new reference where `seeded`, and the settle time. Returns the lanes
+    /// whose reading may correct the heading; flags and counts the others.
     fn track_field(
         &mut self,
         s: &Screened<T>,
-        h: Vec3<T>,
+        (due, time): (T::Mask, T),
+        (h, mag_norm): (Vec3<T>, T),
         azimuth: T,
-        psi_ok: T::Mask,
-        seeded: T::Mask,
+        (psi_ok, seeded): (T::Mask, T::Mask),
     ) -> T::Mask {
         let zero = T::zero();
         let one = T::one();
-        let dt = s.dt;
+        let dt = time;
         let c = &self.coef;
         let f = self.state.field;
         // A lane without a reference starts the low-pass at the sample.
-        let keep = one - self.per_dt.k_mag;
+        let keep = one - self.per_heading.k_mag;
         let lowpass = |y: T, x: T| T::select(f.known, lowpass_step(y, x, keep), x);
-        let norm = lowpass(f.lowpass_norm, s.mag_norm);
+        let norm = lowpass(f.lowpass_norm, mag_norm);
         let dip = lowpass(f.lowpass_dip, (-h.z).clamp(-one, one).asin());
         let matches = |rn: T, rd: T| {
             (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
         };
-        let ok_ref = matches(f.norm, f.dip) & s.mag_ok & f.known;
-        let ok_cand = matches(f.candidate_norm, f.candidate_dip) & s.mag_ok;
-        let k_ref = self.per_dt.k_ref;
+        let ok_ref = matches(f.norm, f.dip) & due & f.known;
+        let ok_cand = matches(f.candidate_norm, f.candidate_dip) & due;
+        let k_ref = self.per_heading.k_ref;
         let mut nf = f;
         nf.lowpass_norm = norm;
         nf.lowpass_dip = dip;
@@ -115,7 +160,7 @@ impl<T: Lane> SqrtEskf<T> {
         nf.candidate_azimuth = T::select(psi_ok, candidate_azimuth, f.candidate_azimuth);
         nf.norm = T::select(ok_ref, f.norm + (norm - f.norm) * k_ref, f.norm);
         nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
-        let rejected = s.mag_ok & !ok_ref;
+        let rejected = due & !ok_ref;
         nf.rejected_time = T::select(rejected, f.rejected_time + dt, zero);
         // Re-acquisition: a candidate stable for mag_new_time, or any stable candidate
         // (≥ rest_time) once rejection has lasted mag_reject_time.
@@ -153,15 +198,17 @@ impl<T: Lane> SqrtEskf<T> {
         // A new reference corrects the heading at once.
         let settled = nf.undisturbed_time.max(c.mag_settle_time);
         nf.undisturbed_time = T::select(seeded, settled, nf.undisturbed_time);
-        let use_mag = matched & s.mag_ok & nf.undisturbed_time.simd_ge(c.mag_settle_time);
-        self.state.field = if s.mag_ok.all() {
+        let use_mag = matched & due & nf.undisturbed_time.simd_ge(c.mag_settle_time);
+        self.state.field = if due.all() {
             nf
         } else {
-            Select::select(s.mag_ok, &nf, &f)
+            Select::select(due, &nf, &f)
         };
-        // Disturbed: a usable sample that does not correct the heading, because the field
-        // does not match the reference or has not matched it for `mag_settle_time` yet.
-        self.state.mag_disturbed = s.mag_ok & !use_mag;
+        // Disturbed: a tested reading that does not correct the heading, because the field
+        // does not match the reference or has not matched it for `mag_settle_time` yet; the
+        // usable readings until the next test are flagged the same.
+        self.state.field_disturbed = (due & !use_mag) | (!due & self.state.field_disturbed);
+        self.state.mag_disturbed = s.mag_ok & self.state.field_disturbed;
         self.rejections.reject_field(self.state.mag_disturbed);
         use_mag
     }

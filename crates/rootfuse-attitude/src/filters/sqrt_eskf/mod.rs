@@ -24,7 +24,7 @@ mod two_windows;
 mod heading;
 // Coefficients cached while the time step repeats.
 mod per_dt;
-use per_dt::{PerDt, PerInterval};
+use per_dt::{PerDt, PerHeading, PerInterval};
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -48,6 +48,14 @@ params! {
         /// the corrections. 1 is every sample. The accuracy and the cost of 1, 2, 4 and 8 are
         /// in `docs/flagship_cost.md`.
         acc_update_every: f64 = 8.0, "samples", [1.0, 1e6];
+        /// 9D: the field is tested, and the heading corrected, every this many samples with a
+        /// usable magnetometer (at once where a lane has no field reference), each test
+        /// standing for the usable magnetometer time since the last (its low-pass gains,
+        /// timers and measurement variance `mag_noise²` over that time); the heading
+        /// variance grows every sample. Between tests a usable reading is flagged as the last
+        /// test found the field. 1 is every sample. Accuracy and cost in
+        /// `docs/flagship_cost.md`.
+        mag_update_every: f64 = 4.0, "samples", [1.0, 1e6];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
         tau_acc: f64 = 2.0, "s", [0.0, 100.0];
         /// Time constant of a second, longer accelerometer window (0: one window). The two
@@ -284,6 +292,14 @@ lane_state! {
         /// inclination correction (`acc_update_every`).
         inclination_samples: T,
         inclination_time: T,
+        /// The same for the magnetometer and the field test (`mag_update_every`), and the
+        /// last test's verdict: the field was disturbed.
+        heading_samples: T,
+        heading_time: T,
+        field_disturbed: T::Mask,
+        /// Sums over those readings of the unit field in the 6D earth frame and of the norm.
+        mag_sum: Vec3<T>,
+        mag_norm_sum: T,
         /// Running mean (time constant `bias_step_window`) of the two horizontal inclination
         /// innovations before correction, rad.
         innovation_mean_x: T,
@@ -327,6 +343,7 @@ lane_state! {
         bias_walk: T,
         bias_noise_every: T,
         acc_update_every: T,
+        mag_update_every: T,
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,
@@ -373,12 +390,16 @@ lane_state! {
 impl SqrtEskfParams {
     /// The parameters each pass of the offline smoother runs with: both accelerometer time
     /// constants (`tau_acc`, `tau_acc_long`) scaled by `smoothing_tau_scale`, no heading
-    /// model error (`heading_model_error_scale` 0), everything else as given.
+    /// model error (`heading_model_error_scale` 0), the field tested at every reading
+    /// (`mag_update_every` 1), everything else as given.
     ///
     /// The heading model error is left out because the passes' reported covariances are the
     /// smoother's weights: an error term both passes share flattens the weights toward equal
     /// and hides which pass has just had its heading corrected (BROAD 9D offline 1.70° without
-    /// it, 1.87° with it; `docs/accuracy.md`).
+    /// it, 1.87° with it; `docs/accuracy.md`). For the same reason each pass corrects its
+    /// heading at every reading: a correction every `mag_update_every` readings makes the
+    /// heading variance a saw-tooth that the weights follow (BROAD 9D offline 1.641° at 1,
+    /// 1.653° at 4; `docs/flagship_cost.md`).
     ///
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
@@ -386,12 +407,14 @@ impl SqrtEskfParams {
     /// assert_eq!(p.for_smoothing().tau_acc, p.tau_acc * p.smoothing_tau_scale);
     /// assert_eq!(p.for_smoothing().tau_acc_long, p.tau_acc_long * p.smoothing_tau_scale);
     /// assert_eq!(p.for_smoothing().heading_model_error_scale, 0.0);
+    /// assert_eq!(p.for_smoothing().mag_update_every, 1.0);
     /// ```
     pub fn for_smoothing(&self) -> Self {
         Self {
             tau_acc: self.tau_acc * self.smoothing_tau_scale,
             tau_acc_long: self.tau_acc_long * self.smoothing_tau_scale,
             heading_model_error_scale: 0.0,
+            mag_update_every: 1.0,
             ..self.clone()
         }
     }
@@ -404,6 +427,7 @@ impl<T: Lane> Coefficients<T> {
             bias_walk: p.coef(|p| p.bias_walk),
             bias_noise_every: p.coef(|p| p.bias_noise_every),
             acc_update_every: p.coef(|p| p.acc_update_every),
+            mag_update_every: p.coef(|p| p.mag_update_every),
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),
@@ -493,6 +517,11 @@ impl<T: Lane> State<T> {
             acc_rejected_time: zero,
             inclination_samples: zero,
             inclination_time: zero,
+            heading_samples: zero,
+            heading_time: zero,
+            field_disturbed: <T::Mask as Mask>::splat(false),
+            mag_sum: Vec3::zero(),
+            mag_norm_sum: zero,
             innovation_mean_x: zero,
             innovation_mean_y: zero,
             innovation_nis: T::one(),
@@ -649,6 +678,7 @@ pub struct SqrtEskf<T: Lane> {
     rejections: Rejections<T>,
     per_dt: PerDt<T>,
     per_interval: PerInterval<T>,
+    per_heading: PerHeading<T>,
     params: SqrtEskfParams,
 }
 
@@ -668,6 +698,7 @@ impl<T: Lane> SqrtEskf<T> {
             rejections: Rejections::default(),
             per_dt,
             per_interval: PerInterval::new(&coef),
+            per_heading: PerHeading::new(&coef),
             params: p.first().clone(),
         }
     }

@@ -1,5 +1,6 @@
 //! The flagship's coefficients that depend on a time step only, cached while it repeats:
-//! per sample ([`PerDt`]) and per inclination correction ([`PerInterval`]).
+//! per sample ([`PerDt`]), per inclination correction ([`PerInterval`]) and per 9D field
+//! test ([`PerHeading`]).
 
 use super::Coefficients;
 use crate::blocks::lowpass_gain;
@@ -21,20 +22,14 @@ pub(super) struct PerDt<T: Lane> {
     /// a skipped sample, divides by 1: finite, and discarded).
     pub r_acc: T,
     pub r_rest: T,
-    pub r_mag: T,
-    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection, the field reference, the
-    /// accelerometer low-pass after the start-up (each stage τ/2) and the heading
-    /// innovation's mean square (`model_error_window`).
+    /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection and the accelerometer
+    /// low-pass after the start-up (each stage τ/2).
     pub k_rest: T,
-    pub k_ref: T,
-    pub k_mag: T,
-    pub k_azimuth: T,
     pub k_acc: T,
     /// The long window's low-pass gain (each stage `tau_acc_long/2`) and its motion
     /// measures' gain (`window_tau`).
     pub k_acc_long: T,
     pub k_window: T,
-    pub k_model: T,
 }
 
 impl<T: Lane> PerDt<T> {
@@ -54,11 +49,7 @@ impl<T: Lane> PerDt<T> {
             bias_std: c.bias_walk * sdt,
             r_acc: c.acc_var / per_sample,
             r_rest: c.rest_var / per_sample,
-            r_mag: c.mag_var / per_sample,
             k_rest: lowpass_gain(dt, c.rest_tau),
-            k_ref: lowpass_gain(dt, c.mag_ref_tau),
-            k_mag: lowpass_gain(dt, c.mag_lowpass_tau),
-            k_azimuth: lowpass_gain(dt, c.mag_azimuth_tau),
             k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
             k_acc_long: if two_windows {
                 lowpass_gain(dt, c.tau_acc_long * T::from_f64(0.5))
@@ -70,7 +61,6 @@ impl<T: Lane> PerDt<T> {
             } else {
                 T::zero()
             },
-            k_model: lowpass_gain(dt, c.model_error_window),
         }
     }
 
@@ -121,6 +111,51 @@ impl<T: Lane> PerInterval<T> {
             } else {
                 T::zero()
             },
+        }
+    }
+
+    /// Recomputes every lane when any lane's time differs from the cached one.
+    #[inline]
+    pub(super) fn refresh(&mut self, time: T, c: &Coefficients<T>) {
+        if time.simd_ne(self.time).any() {
+            *self = Self::compute(time, c);
+        }
+    }
+}
+
+/// The coefficients of one 9D field test and heading correction, for the usable magnetometer
+/// time since the previous one (`mag_update_every` readings; `dt` where every reading is
+/// tested, so that the formulas are those of a sample). Cached like [`PerDt`] while that time
+/// repeats; bit for bit what the formulas give.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PerHeading<T: Lane> {
+    /// The time the coefficients are for, s.
+    pub time: T,
+    /// The heading measurement variance, `mag_noise²/time`.
+    pub r_mag: T,
+    /// Gains `1 − exp(−time/τ)` of the field reference and candidate (`mag_ref_tau`), the
+    /// field low-pass (`mag_lowpass_tau`), the reference azimuth's decay (`mag_azimuth_tau`)
+    /// and the heading innovation's mean square (`model_error_window`).
+    pub k_ref: T,
+    pub k_mag: T,
+    pub k_azimuth: T,
+    pub k_model: T,
+}
+
+impl<T: Lane> PerHeading<T> {
+    pub(super) fn new(c: &Coefficients<T>) -> Self {
+        Self::compute(T::zero(), c)
+    }
+
+    fn compute(time: T, c: &Coefficients<T>) -> Self {
+        let per_time = T::select(time.simd_gt(T::zero()), time, T::one());
+        Self {
+            time,
+            r_mag: c.mag_var / per_time,
+            k_ref: lowpass_gain(time, c.mag_ref_tau),
+            k_mag: lowpass_gain(time, c.mag_lowpass_tau),
+            k_azimuth: lowpass_gain(time, c.mag_azimuth_tau),
+            k_model: lowpass_gain(time, c.model_error_window),
         }
     }
 

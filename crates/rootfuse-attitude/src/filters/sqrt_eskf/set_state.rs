@@ -14,6 +14,7 @@ impl<T: Lane> SqrtEskf<T> {
         self.rejections = Rejections::default();
         self.per_dt = PerDt::new(&self.coef);
         self.per_interval = PerInterval::new(&self.coef);
+        self.per_heading = PerHeading::new(&self.coef);
     }
 
     /// [`OrientationFilter::set_quat`]: with `sigma`, rows 0–2 of the upper factor `S`
