@@ -29,24 +29,30 @@ const PINNED: &[[f64; 2]] = &[
     [2.672, 2.980], // 35_disturbed_attached_magnet_4cm
 ];
 
+/// The flagship over `rec` with `p` (in f32 lanes or f64): total and inclination RMSE,
+/// degrees, scored as its `dof` is.
+fn scores(rec: &Recording, p: &SqrtEskfParams, f32_lanes: bool) -> [f64; 2] {
+    let est = if f32_lanes {
+        rec.estimate(&mut SqrtEskf::<f32>::new(p))
+    } else {
+        rec.estimate(&mut SqrtEskf::<f64>::new(p))
+    };
+    let align = if p.dof.uses_magnetometer() {
+        Alignment::NineD
+    } else {
+        Alignment::SixD
+    };
+    let m = evaluate(rec, &est, align).expect("BROAD trials have truth");
+    [m.total, m.inclination]
+}
+
+/// The defaults' total RMSE in `dof` (6 or 9).
 fn total(rec: &Recording, dof: u8, f32_lanes: bool) -> f64 {
     let p = SqrtEskfParams {
         dof: Dof::from_count(dof).expect("6 or 9"),
         ..SqrtEskfParams::default()
     };
-    let est = if f32_lanes {
-        rec.estimate(&mut SqrtEskf::<f32>::new(&p))
-    } else {
-        rec.estimate(&mut SqrtEskf::<f64>::new(&p))
-    };
-    let align = if dof == 9 {
-        Alignment::NineD
-    } else {
-        Alignment::SixD
-    };
-    evaluate(rec, &est, align)
-        .expect("BROAD trials have truth")
-        .total
+    scores(rec, &p, f32_lanes)[0]
 }
 
 /// The flagship (f64) over `rec`: its estimate and reported attitude covariance (upper
@@ -326,14 +332,7 @@ fn correcting_every_eighth_sample_keeps_the_accuracy() {
                     acc_update_every: every,
                     ..SqrtEskfParams::default()
                 };
-                let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
-                let align = if dof == 9 {
-                    Alignment::NineD
-                } else {
-                    Alignment::SixD
-                };
-                let m = evaluate(rec, &est, align).expect("BROAD trials have truth");
-                [m.total, m.inclination]
+                scores(rec, &p, false)
             };
             let (every, each) = (score(8.0), score(1.0));
             for (what, a, b) in [
@@ -370,10 +369,7 @@ fn testing_the_field_every_fourth_reading_keeps_the_accuracy() {
             mag_update_every: every,
             ..SqrtEskfParams::default()
         };
-        let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
-        evaluate(rec, &est, Alignment::NineD)
-            .expect("BROAD trials have truth")
-            .total
+        scores(rec, &p, false)[0]
     };
     let (mut sum4, mut sum1) = (0.0, 0.0);
     for rec in &recs {

@@ -265,6 +265,31 @@ mod tests {
         u
     }
 
+    /// [`add_diagonal_noise`] of `q` on the upper factor made from `v` gives
+    /// `U·Uᵀ + diag(q, 0…)²`, upper triangular, with a non-negative diagonal in the rows with
+    /// noise (the others are not touched).
+    fn noise_check<const M: usize>(
+        v: &[f64],
+        q: &[f64; M],
+    ) -> Result<(), proptest::test_runner::TestCaseError> {
+        let mut u = upper(v);
+        let mut expected = u * u.transpose();
+        for k in 0..M {
+            expected.m[k][k] += q[k] * q[k];
+        }
+        add_diagonal_noise(&mut u, q);
+        prop_assert!(
+            max_diff(&(u * u.transpose()), &expected) <= 1e-9 * (1.0 + expected.max_abs())
+        );
+        for i in 0..N {
+            prop_assert!(i >= M || u.m[i][i] >= 0.0);
+            for j in 0..i {
+                prop_assert_eq!(u.m[i][j], 0.0);
+            }
+        }
+        Ok(())
+    }
+
     fn max_diff(a: &Mat<f64, N, N>, b: &Mat<f64, N, N>) -> f64 {
         let mut m: f64 = 0.0;
         for i in 0..N {
@@ -318,19 +343,7 @@ mod tests {
             v in prop::collection::vec(-2.0..2.0f64, 21),
             q in prop::array::uniform6(0.0..1.0f64),
         ) {
-            let mut u = upper(&v);
-            let mut expected = u * u.transpose();
-            for k in 0..N {
-                expected.m[k][k] += q[k] * q[k];
-            }
-            add_diagonal_noise(&mut u, &q);
-            prop_assert!(max_diff(&(u * u.transpose()), &expected) <= 1e-9 * (1.0 + expected.max_abs()));
-            for i in 0..N {
-                prop_assert!(u.m[i][i] >= 0.0);
-                for j in 0..i {
-                    prop_assert_eq!(u.m[i][j], 0.0);
-                }
-            }
+            noise_check(&v, &q)?;
         }
 
         /// Noise on the first three states only: `U·Uᵀ + diag(q, 0, 0, 0)²`.
@@ -339,18 +352,7 @@ mod tests {
             v in prop::collection::vec(-2.0..2.0f64, 21),
             q in prop::array::uniform3(0.0..1.0f64),
         ) {
-            let mut u = upper(&v);
-            let mut expected = u * u.transpose();
-            for k in 0..3 {
-                expected.m[k][k] += q[k] * q[k];
-            }
-            add_diagonal_noise(&mut u, &q);
-            prop_assert!(max_diff(&(u * u.transpose()), &expected) <= 1e-9 * (1.0 + expected.max_abs()));
-            for i in 0..N {
-                for j in 0..i {
-                    prop_assert_eq!(u.m[i][j], 0.0);
-                }
-            }
+            noise_check(&v, &q)?;
         }
     }
 }

@@ -24,7 +24,7 @@ mod two_windows;
 mod heading;
 // Coefficients cached while the time step repeats.
 mod per_dt;
-use per_dt::{PerDt, PerHeading, PerInterval};
+use per_dt::{Cached, PerDt, PerHeading, PerInterval};
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -676,9 +676,9 @@ pub struct SqrtEskf<T: Lane> {
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
-    per_dt: PerDt<T>,
-    per_interval: PerInterval<T>,
-    per_heading: PerHeading<T>,
+    per_dt: Cached<T, PerDt<T>>,
+    per_interval: Cached<T, PerInterval<T>>,
+    per_heading: Cached<T, PerHeading<T>>,
     params: SqrtEskfParams,
 }
 
@@ -689,7 +689,7 @@ impl<T: Lane> SqrtEskf<T> {
     /// the screening limits are those of the first set.
     pub fn with_lane_params(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {
         let coef = Coefficients::new(p);
-        let per_dt = PerDt::new(&coef);
+        let per_dt = Cached::new(&coef);
         Self {
             state: State::new(&coef),
             coef,
@@ -697,8 +697,8 @@ impl<T: Lane> SqrtEskf<T> {
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
             per_dt,
-            per_interval: PerInterval::new(&coef),
-            per_heading: PerHeading::new(&coef),
+            per_interval: Cached::new(&coef),
+            per_heading: Cached::new(&coef),
             params: p.first().clone(),
         }
     }

@@ -12,9 +12,9 @@ impl<T: Lane> SqrtEskf<T> {
     pub(super) fn reset_state(&mut self) {
         self.state = State::new(&self.coef);
         self.rejections = Rejections::default();
-        self.per_dt = PerDt::new(&self.coef);
-        self.per_interval = PerInterval::new(&self.coef);
-        self.per_heading = PerHeading::new(&self.coef);
+        self.per_dt = Cached::new(&self.coef);
+        self.per_interval = Cached::new(&self.coef);
+        self.per_heading = Cached::new(&self.coef);
     }
 
     /// [`OrientationFilter::set_quat`]: with `sigma`, rows 0–2 of the upper factor `S`
