@@ -1,7 +1,7 @@
 //! The flagship's 9D heading: the field test (disturbance detection against the learned
 //! field reference, re-acquisition of a new field) and the scalar heading-offset update.
 
-use super::update::INITIAL_HEADING_VAR;
+use super::update::{INITIAL_HEADING_VAR, count_since};
 use super::*;
 
 impl<T: Lane> SqrtEskf<T> {
@@ -94,8 +94,8 @@ impl<T: Lane> SqrtEskf<T> {
         // A lane without a reference (a new filter, or one told to forget it after a new
         // calibration) takes the reading as it is: the readings before belong to another field.
         let first = st.heading_samples.simd_eq(zero) | !st.field.known;
-        let samples = T::select(first, zero, st.heading_samples) + T::select(s.mag_ok, one, zero);
-        let time = T::select(first, zero, st.heading_time) + T::select(s.mag_ok, s.dt, zero);
+        let (samples, time) =
+            count_since((st.heading_samples, st.heading_time), s.mag_ok, s.dt, first);
         let sum = Vec3::select(first, h, st.mag_sum + h);
         let norm_sum = T::select(first, s.mag_norm, st.mag_norm_sum + s.mag_norm);
         let sum = Vec3::select(s.mag_ok, sum, st.mag_sum);

@@ -308,8 +308,13 @@ impl<T: Lane> SqrtEskf<T> {
     fn inclination_due(&mut self, s: &Screened<T>, starting: T::Mask) -> (T::Mask, T) {
         let zero = T::zero();
         let st = &mut self.state;
-        let samples = st.inclination_samples + T::select(s.acc_ok, T::one(), zero);
-        let time = st.inclination_time + T::select(s.acc_ok, s.dt, zero);
+        let none = <T::Mask as Mask>::splat(false);
+        let (samples, time) = count_since(
+            (st.inclination_samples, st.inclination_time),
+            s.acc_ok,
+            s.dt,
+            none,
+        );
         let due = s.acc_ok & (samples.simd_ge(self.coef.acc_update_every) | starting);
         st.inclination_samples = T::select(due, zero, samples);
         st.inclination_time = T::select(due, zero, time);
@@ -463,6 +468,22 @@ impl<T: Lane> SqrtEskf<T> {
         }
         correction.accepted |= accepted;
     }
+}
+
+/// The usable samples and their summed time (s) since the last correction, counting this
+/// sample where `ok` (its `dt`), and counting from zero in the lanes `restart`: what
+/// `acc_update_every` and `mag_update_every` read.
+pub(super) fn count_since<T: Lane>(
+    (samples, time): (T, T),
+    ok: T::Mask,
+    dt: T,
+    restart: T::Mask,
+) -> (T, T) {
+    let zero = T::zero();
+    (
+        T::select(restart, zero, samples) + T::select(ok, T::one(), zero),
+        T::select(restart, zero, time) + T::select(ok, dt, zero),
+    )
 }
 
 /// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
