@@ -4,17 +4,18 @@
 //!
 //! ```sh
 //! cargo build --release -p rootfuse-attitude --example flagship_cost
-//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF]
+//! target/release/examples/flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF] [RATE]
 //! ```
 //! FILTER is `sqrt-eskf` (the default), `mahony`, `madgwick` or `complementary`, each with its
-//! default parameters; DOF is 9 (the default) or 6.
-//! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (286 Hz like BROAD):
+//! default parameters; DOF is 9 (the default) or 6; RATE the sample rate in Hz (default 286, like
+//! BROAD; `rootfuse throughput` runs 100 Hz with 10 % jitter).
+//! MODE is `f32`, `f64`, `f32x8`, `f64x4` or `none` (only the input is made). The input is synthetic (at RATE):
 //! rests of 4 s between 10 s of rotation about a wandering axis, gravity and a dipping field
 //! rotated into the sensor frame, plus a little deterministic noise; every lane runs the same
 //! data. It is built before the clock starts, so only `update` is timed. Prints one JSON line:
 //! the best ns per channel-update over PASSES passes and a checksum of the final orientation.
 //! JITTER (default 0) is the relative spread of the time step: each sample's `dt`, in each lane
-//! on its own, is `(1 + JITTER·u)/286 s` with `u` uniform in [−1, 1], as a fleet of real
+//! on its own, is `(1 + JITTER·u)/RATE` with `u` uniform in [−1, 1], as a fleet of real
 //! recordings with jittered time stamps gives (a constant `dt` is the cheap case).
 
 use rootfuse_attitude::filters::{
@@ -24,8 +25,6 @@ use rootfuse_attitude::filters::{
 use rootfuse_attitude::{Dof, ImuSample, Lane, OrientationFilter, Quat, Vec3};
 use rootfuse_lane::wide;
 use std::time::Instant;
-
-const RATE_HZ: f64 = 286.0;
 
 /// A deterministic uniform stream in [−1, 1) (xorshift64 from `seed`).
 fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
@@ -38,8 +37,8 @@ fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
 }
 
 /// `n` samples (sensor frame, SI units) of the motion described in the module docs.
-fn motion(n: usize) -> Vec<ImuSample<f64>> {
-    let dt = 1.0 / RATE_HZ;
+fn motion(n: usize, rate_hz: f64) -> Vec<ImuSample<f64>> {
+    let dt = 1.0 / rate_hz;
     let mut uniform = xorshift(0x2545_f491_4f6c_dd1d);
     let mut noise = move |scale: f64| uniform() * scale;
     let mut q = Quat::<f64>::from_euler_zyx(0.3, 0.1, -0.2);
@@ -65,30 +64,30 @@ fn motion(n: usize) -> Vec<ImuSample<f64>> {
 fn run<T: Lane>(
     data: &[ImuSample<f64>],
     passes: usize,
-    jitter: f64,
+    jitter_rate: (f64, f64),
     filter: &str,
     dof: Dof,
 ) -> (f64, f64) {
     match filter {
-        "mahony" => run_filter(data, passes, jitter, || {
+        "mahony" => run_filter(data, passes, jitter_rate, || {
             Mahony::<T>::new(&MahonyParams {
                 dof,
                 ..Default::default()
             })
         }),
-        "madgwick" => run_filter(data, passes, jitter, || {
+        "madgwick" => run_filter(data, passes, jitter_rate, || {
             Madgwick::<T>::new(&MadgwickParams {
                 dof,
                 ..Default::default()
             })
         }),
-        "complementary" => run_filter(data, passes, jitter, || {
+        "complementary" => run_filter(data, passes, jitter_rate, || {
             Complementary::<T>::new(&ComplementaryParams {
                 dof,
                 ..Default::default()
             })
         }),
-        _ => run_filter(data, passes, jitter, || {
+        _ => run_filter(data, passes, jitter_rate, || {
             SqrtEskf::<T>::new(&SqrtEskfParams {
                 dof,
                 ..Default::default()
@@ -100,7 +99,7 @@ fn run<T: Lane>(
 fn run_filter<T: Lane, F: OrientationFilter<T>>(
     data: &[ImuSample<f64>],
     passes: usize,
-    jitter: f64,
+    (jitter, rate_hz): (f64, f64),
     make: impl Fn() -> F,
 ) -> (f64, f64) {
     let c = |v: Vec3<f64>| Vec3::<T>::from_f64([v.x, v.y, v.z]);
@@ -109,7 +108,7 @@ fn run_filter<T: Lane, F: OrientationFilter<T>>(
         .iter()
         .map(|s| {
             let dt =
-                T::from_fn(|_| <T::Scalar as Lane>::from_f64((1.0 + jitter * uniform()) / RATE_HZ));
+                T::from_fn(|_| <T::Scalar as Lane>::from_f64((1.0 + jitter * uniform()) / rate_hz));
             (ImuSample::new(c(s.gyr), c(s.acc), c(s.mag)), dt)
         })
         .collect();
@@ -140,16 +139,18 @@ fn run_filter<T: Lane, F: OrientationFilter<T>>(
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF]";
+    let usage = "usage: flagship_cost MODE [SAMPLES] [PASSES] [JITTER] [FILTER] [DOF] [RATE]";
     let mode = args.first().ok_or(usage)?;
     let number = |i: usize, default: usize| -> Result<usize, String> {
         args.get(i)
             .map_or(Ok(default), |a| a.parse().map_err(|_| usage.to_string()))
     };
     let (samples, passes) = (number(1, 100_000)?, number(2, 3)?);
-    let jitter: f64 = args
-        .get(3)
-        .map_or(Ok(0.0), |a| a.parse().map_err(|_| usage.to_string()))?;
+    let real = |i: usize, default: f64| -> Result<f64, String> {
+        args.get(i)
+            .map_or(Ok(default), |a| a.parse().map_err(|_| usage.to_string()))
+    };
+    let (jitter, rate_hz) = (real(3, 0.0)?, real(6, 286.0)?);
     let filter = args.get(4).map_or("sqrt-eskf", String::as_str);
     if !["sqrt-eskf", "mahony", "madgwick", "complementary"].contains(&filter) {
         return Err(usage.into());
@@ -159,12 +160,12 @@ fn main() -> Result<(), String> {
         "6" => Dof::Six,
         _ => return Err(usage.into()),
     };
-    let data = motion(samples);
+    let data = motion(samples, rate_hz);
     let (ns, checksum) = match mode.as_str() {
-        "f32" => run::<f32>(&data, passes, jitter, filter, dof),
-        "f64" => run::<f64>(&data, passes, jitter, filter, dof),
-        "f32x8" => run::<wide::f32x8>(&data, passes, jitter, filter, dof),
-        "f64x4" => run::<wide::f64x4>(&data, passes, jitter, filter, dof),
+        "f32" => run::<f32>(&data, passes, (jitter, rate_hz), filter, dof),
+        "f64" => run::<f64>(&data, passes, (jitter, rate_hz), filter, dof),
+        "f32x8" => run::<wide::f32x8>(&data, passes, (jitter, rate_hz), filter, dof),
+        "f64x4" => run::<wide::f64x4>(&data, passes, (jitter, rate_hz), filter, dof),
         // Only the input: the baseline subtracted from instruction counts.
         "none" => (0.0, std::hint::black_box(&data).len() as f64),
         _ => return Err(usage.into()),

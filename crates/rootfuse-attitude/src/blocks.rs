@@ -52,16 +52,20 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
 /// `y ← y + k·(x − y)` with time constant `tau` (s) over a step `dt` (s): the one low-pass
 /// discretisation of every filter in this crate.
 ///
-/// It is exact for every `dt/τ` from 0 to ∞: `k = −expm1(−x)`, `x = dt/τ`, computed in `f64`
-/// and rounded once to the lane's precision, so a small `x` keeps its digits (`1 − exp` would
-/// cancel) and a large one gives 1 rather than diverging. For `x ≤ 1/8` (every filter's usual
-/// case: `dt` of milliseconds against `τ` of tenths of a second and more) it is the Taylor
-/// series through `x¹²` by Horner (the first dropped term is below 3·10⁻¹⁹ of the result),
-/// and `f64` lanes evaluate it in SIMD: a sample rate with jitter, which changes `dt` at
-/// every sample, costs a dozen multiply-adds per gain instead of a libm call per lane.
-/// Larger `x` calls libm's `expm1`. Against `−expm1(−x)` the result is within one rounding
-/// in `f32` and a few ulp in `f64` (the tests bound 4). Each lane is computed on its own, so
-/// a lane equals the scalar result bit for bit.
+/// It is exact for every `dt/τ` from 0 to ∞: `k = −expm1(−x)`, `x = dt/τ`, so a small `x`
+/// keeps its digits (`1 − exp` would cancel) and a large one gives 1 rather than diverging.
+/// Up to `x = 4` (every filter's usual case: `dt` of milliseconds against `τ` of tenths of a
+/// second and more, or a few samples against the shortest `τ`) it is computed in the lane's
+/// own arithmetic, in SIMD, with no libm call: `x` is halved until it is at most `1/8`, the
+/// gain of the halved step taken from the Taylor series by Horner (through `x¹²` in `f64`,
+/// `x⁶` in `f32`; the first dropped term is below 3·10⁻¹⁹ and 10⁻⁹ of the result), then
+/// doubled back as often by `k(2y) = k(y)·(2 − k(y))` (two equal steps; no
+/// cancellation, since `2 − k ≥ 1`). A sample rate with jitter, which changes `dt` at every
+/// sample, thus costs a few multiply-adds per gain instead of a libm call per lane. Larger
+/// `x` calls libm's `expm1` in `f64`, rounded once. Against `−expm1(−dt/τ)` of the lane's `dt`
+/// and `τ` the result is within 2 ulp in `f64` and `f32` (the division, the series and each
+/// doubling round in the lane's precision; `tests/attitude/bad_samples.rs` bounds it). Each lane is computed on its own, with the
+/// same operations in the same order, so a lane equals the scalar result bit for bit.
 ///
 /// Special values, per lane:
 /// - `tau = 0` means **no low-pass**: `k = 1` (the output is the input) for any `dt > 0`;
@@ -79,44 +83,51 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
 /// ```
 #[inline]
 pub fn lowpass_gain<T: Lane>(dt: T, tau: T) -> T {
-    // f64 lanes: the series in SIMD when every lane is in its range. The per-lane path below
-    // gives each lane the same operations in the same order, so the bits agree either way.
-    if core::mem::size_of::<T::Scalar>() == core::mem::size_of::<f64>() {
-        let x = dt / tau;
-        let series = dt.simd_gt(T::zero())
-            & tau.simd_gt(T::zero())
-            & x.simd_le(T::from_f64(GAIN_SERIES_LIMIT));
-        if series.all() {
-            return gain_series(x);
-        }
-    } else if T::LANES > 1 && T::LANES <= MAX_SERIES_LANES {
-        // f32 lanes: the same f64 series as the scalar path, over an array of the lanes'
-        // `dt/τ` that the compiler vectorises (a jittered `dt` changes every lane's gain at
-        // every sample, and lane-by-lane calls cost more than the filter's arithmetic).
-        let mut x = [0.0f64; MAX_SERIES_LANES];
-        let mut series = true;
-        for (i, x) in x.iter_mut().enumerate().take(T::LANES) {
-            let (d, t): (f64, f64) = (dt.extract(i).into(), tau.extract(i).into());
-            *x = d / t;
-            series &= d > 0.0 && t > 0.0 && *x <= GAIN_SERIES_LIMIT;
-        }
-        if series {
-            for x in &mut x {
-                *x = gain_series(*x);
-            }
-            return T::from_fn(|i| <T::Scalar as Lane>::from_f64(x[i]));
-        }
+    let x = dt / tau;
+    let in_range =
+        dt.simd_gt(T::zero()) & tau.simd_gt(T::zero()) & x.simd_le(T::from_f64(GAIN_HALVING_LIMIT));
+    if in_range.all() {
+        gain_by_halving(x)
+    } else {
+        gain_per_lane(dt, tau)
     }
-    T::from_fn(|i| {
-        <T::Scalar as Lane>::from_f64(scalar_gain(dt.extract(i).into(), tau.extract(i).into()))
-    })
 }
 
-/// The widest lane type (`f32x8` doubled) whose gains [`lowpass_gain`] evaluates as one array.
-const MAX_SERIES_LANES: usize = 16;
+/// [`lowpass_gain`] of one step `dt` (s) for several time constants `tau` (s): the same bits
+/// as one call per time constant, with one range test for all of them where every lane of
+/// every gain is in the series' range (the usual case), so a jittered `dt` costs a few
+/// multiply-adds per gain.
+///
+/// ```
+/// use rootfuse_attitude::blocks::{lowpass_gain, lowpass_gains};
+/// let [a, b] = lowpass_gains(0.01_f32, [0.5, 0.0]);
+/// assert_eq!((a, b), (lowpass_gain(0.01, 0.5), 1.0));
+/// ```
+#[inline]
+pub fn lowpass_gains<T: Lane, const N: usize>(dt: T, tau: [T; N]) -> [T; N] {
+    let x = tau.map(|tau| dt / tau);
+    let mut series = dt.simd_gt(T::zero());
+    for (tau, x) in tau.iter().zip(&x) {
+        series = series & tau.simd_gt(T::zero()) & x.simd_le(T::from_f64(GAIN_SERIES_LIMIT));
+    }
+    if series.all() {
+        x.map(gain_series)
+    } else {
+        tau.map(|tau| lowpass_gain(dt, tau))
+    }
+}
 
-/// The largest `x = dt/τ` [`lowpass_gain`] takes from its series.
-const GAIN_SERIES_LIMIT: f64 = 0.125;
+/// [`lowpass_gain`] lane by lane: for lanes outside the halving range (a skipped sample,
+/// `τ = 0`, a long gap), out of line so that the usual path stays small.
+#[cold]
+#[inline(never)]
+fn gain_per_lane<T: Lane>(dt: T, tau: T) -> T {
+    T::from_fn(|i| scalar_gain(dt.extract(i), tau.extract(i)))
+}
+
+/// The largest `x = dt/τ` whose gain [`lowpass_gain`] computes by halving `x` into the
+/// series' range (at most 5 halvings).
+const GAIN_HALVING_LIMIT: f64 = 4.0;
 
 /// `−expm1(−x) = Σ (−1)ⁿ⁺¹ xⁿ/n!`: the coefficients of `x¹ … x¹²`.
 const GAIN_SERIES: [f64; 12] = [
@@ -134,34 +145,84 @@ const GAIN_SERIES: [f64; 12] = [
     -1.0 / 479001600.0,
 ];
 
-/// The series of [`GAIN_SERIES`] at `x` (Horner), in the arithmetic of `L`.
-#[inline]
+/// The largest `x` [`lowpass_gain`] takes from its series (larger ones are halved into it).
+const GAIN_SERIES_LIMIT: f64 = 0.125;
+
+fn is_f64<L: Lane>() -> bool {
+    core::mem::size_of::<L::Scalar>() == core::mem::size_of::<f64>()
+}
+
+/// `−expm1(−x)` for `0 < x ≤ GAIN_HALVING_LIMIT` in the arithmetic of `L` (see
+/// [`lowpass_gain`]): the series where every lane is in its range (the usual case, inline),
+/// else halving and doubling.
+#[inline(always)]
+fn gain_by_halving<L: Lane>(x: L) -> L {
+    if x.simd_gt(L::from_f64(GAIN_SERIES_LIMIT)).none() {
+        gain_series(x)
+    } else {
+        gain_halved(x)
+    }
+}
+
+/// The series of [`GAIN_SERIES`] at `x ≤ 1/8` (Horner) in the arithmetic of `L`, through
+/// `x¹²` in `f64` and `x⁶` in `f32` (the first dropped term is below 3·10⁻¹⁹ and 10⁻⁹ of the
+/// result, far below one rounding).
+#[inline(always)]
 fn gain_series<L: Lane>(x: L) -> L {
-    let mut p = L::from_f64(GAIN_SERIES[11]);
-    for &c in GAIN_SERIES[..11].iter().rev() {
+    let terms = if is_f64::<L>() { 12 } else { 6 };
+    let mut p = L::from_f64(GAIN_SERIES[terms - 1]);
+    for &c in GAIN_SERIES[..terms - 1].iter().rev() {
         p = p * x + L::from_f64(c);
     }
     p * x
 }
 
-/// One lane of [`lowpass_gain`], in `f64`.
+/// [`gain_by_halving`] where some lane's `x` is above the series' range: each lane halved
+/// until it is in range, its series doubled back as often. The loops run as often as the
+/// lane that needs most; every other lane keeps its value through a select, so its result is
+/// the one it would have alone.
+#[inline(never)]
+fn gain_halved<L: Lane>(x: L) -> L {
+    // `GAIN_HALVING_LIMIT` needs at most 5 halvings; the bound keeps a caller's larger `x`
+    // from looping on.
+    const MAX_HALVINGS: usize = 5;
+    let limit = L::from_f64(GAIN_SERIES_LIMIT);
+    let (mut y, mut halvings, mut n) = (x, L::zero(), 0);
+    while n < MAX_HALVINGS {
+        let over = y.simd_gt(limit);
+        if over.none() {
+            break;
+        }
+        y = L::select(over, y * L::from_f64(0.5), y);
+        halvings = L::select(over, halvings + L::one(), halvings);
+        n += 1;
+    }
+    let mut k = gain_series(y);
+    for j in (0..n).rev() {
+        let doubled = halvings.simd_gt(L::from_f64(j as f64));
+        k = L::select(doubled, k * (L::from_f64(2.0) - k), k);
+    }
+    k
+}
+
+/// One lane of [`lowpass_gain`], in the lane's precision.
 #[inline]
-fn scalar_gain(dt: f64, tau: f64) -> f64 {
+fn scalar_gain<S: Lane + PartialOrd + Into<f64>>(dt: S, tau: S) -> S {
     // NaN lands on the documented side: a NaN `dt` takes nothing in, a NaN `tau` is no
     // low-pass.
-    if dt > 0.0 {
-        if tau > 0.0 {
+    if dt > S::zero() {
+        if tau > S::zero() {
             let x = dt / tau;
-            if x <= GAIN_SERIES_LIMIT {
-                gain_series(x)
+            if x <= S::from_f64(GAIN_HALVING_LIMIT) {
+                gain_by_halving(x)
             } else {
-                -libm::expm1(-x)
+                S::from_f64(-libm::expm1(-(dt.into() / tau.into())))
             }
         } else {
-            1.0
+            S::one()
         }
     } else {
-        0.0
+        S::zero()
     }
 }
 

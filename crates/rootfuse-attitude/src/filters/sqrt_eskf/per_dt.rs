@@ -3,7 +3,7 @@
 //! per 9D field test ([`PerHeading`]).
 
 use super::Coefficients;
-use crate::blocks::lowpass_gain;
+use crate::blocks::lowpass_gains;
 use core::ops::Deref;
 use rootfuse_lane::{Lane, Mask};
 
@@ -77,29 +77,37 @@ pub(super) struct PerDt<T: Lane> {
 }
 
 impl<T: Lane> ForTime<T> for PerDt<T> {
+    #[inline]
     fn compute(dt: T, c: &Coefficients<T>) -> Self {
         let sdt = dt.sqrt();
         let per_sample = divisor(dt);
         // The long window's gains only where some lane runs it (a jittered `dt` recomputes
         // every gain at every sample).
         let two_windows = c.tau_acc_long.simd_gt(T::zero()).any();
+        let half = T::from_f64(0.5);
+        let [k_rest, k_acc, k_acc_long, k_window] = if two_windows {
+            lowpass_gains(
+                dt,
+                [
+                    c.rest_tau,
+                    c.tau_acc * half,
+                    c.tau_acc_long * half,
+                    c.window_tau,
+                ],
+            )
+        } else {
+            let [k_rest, k_acc] = lowpass_gains(dt, [c.rest_tau, c.tau_acc * half]);
+            [k_rest, k_acc, T::zero(), T::zero()]
+        };
         Self {
             gyr_std: c.gyr_noise * sdt,
             bias_std: c.bias_walk * sdt,
             r_acc: c.acc_var / per_sample,
             r_rest: c.rest_var / per_sample,
-            k_rest: lowpass_gain(dt, c.rest_tau),
-            k_acc: lowpass_gain(dt, c.tau_acc * T::from_f64(0.5)),
-            k_acc_long: if two_windows {
-                lowpass_gain(dt, c.tau_acc_long * T::from_f64(0.5))
-            } else {
-                T::zero()
-            },
-            k_window: if two_windows {
-                lowpass_gain(dt, c.window_tau)
-            } else {
-                T::zero()
-            },
+            k_rest,
+            k_acc,
+            k_acc_long,
+            k_window,
         }
     }
 }
@@ -122,17 +130,25 @@ pub(super) struct PerInterval<T: Lane> {
 }
 
 impl<T: Lane> ForTime<T> for PerInterval<T> {
+    #[inline]
     fn compute(time: T, c: &Coefficients<T>) -> Self {
+        // The bias-step detector's gain only where some lane detects bias steps (off by
+        // default).
+        let [k_adapt, k_model, k_bias_step] = if c.bias_step_threshold.simd_gt(T::zero()).any() {
+            lowpass_gains(
+                time,
+                [c.acc_adapt_window, c.model_error_window, c.bias_step_window],
+            )
+        } else {
+            let [k_adapt, k_model] =
+                lowpass_gains(time, [c.acc_adapt_window, c.model_error_window]);
+            [k_adapt, k_model, T::zero()]
+        };
         Self {
             r_acc: c.acc_var / divisor(time),
-            k_adapt: lowpass_gain(time, c.acc_adapt_window),
-            k_model: lowpass_gain(time, c.model_error_window),
-            // Only where some lane detects bias steps (off by default).
-            k_bias_step: if c.bias_step_threshold.simd_gt(T::zero()).any() {
-                lowpass_gain(time, c.bias_step_window)
-            } else {
-                T::zero()
-            },
+            k_adapt,
+            k_model,
+            k_bias_step,
         }
     }
 }
@@ -154,13 +170,23 @@ pub(super) struct PerHeading<T: Lane> {
 }
 
 impl<T: Lane> ForTime<T> for PerHeading<T> {
+    #[inline]
     fn compute(time: T, c: &Coefficients<T>) -> Self {
+        let [k_ref, k_mag, k_azimuth, k_model] = lowpass_gains(
+            time,
+            [
+                c.mag_ref_tau,
+                c.mag_lowpass_tau,
+                c.mag_azimuth_tau,
+                c.model_error_window,
+            ],
+        );
         Self {
             r_mag: c.mag_var / divisor(time),
-            k_ref: lowpass_gain(time, c.mag_ref_tau),
-            k_mag: lowpass_gain(time, c.mag_lowpass_tau),
-            k_azimuth: lowpass_gain(time, c.mag_azimuth_tau),
-            k_model: lowpass_gain(time, c.model_error_window),
+            k_ref,
+            k_mag,
+            k_azimuth,
+            k_model,
         }
     }
 }
