@@ -16,7 +16,7 @@ const PINNED: &[[f64; 2]] = &[
     [1.277, 0.611], // 02_undisturbed_slow_rotation_B
     [1.281, 3.931], // 04_undisturbed_slow_rotation_with_breaks_A
     [1.650, 1.532], // 07_undisturbed_fast_rotation_B
-    [3.374, 7.876], // 08_undisturbed_fast_rotation_with_breaks_A
+    [3.433, 7.876], // 08_undisturbed_fast_rotation_with_breaks_A
     [1.367, 1.052], // 10_undisturbed_slow_translation_A
     [1.435, 1.382], // 12_undisturbed_slow_translation_C
     [0.805, 0.667], // 16_undisturbed_fast_translation_B
@@ -26,7 +26,7 @@ const PINNED: &[[f64; 2]] = &[
     [1.918, 4.663], // 29_disturbed_stationary_magnet_B
     [1.845, 3.078], // 31_disturbed_stationary_magnet_D
     [2.049, 2.355], // 33_disturbed_attached_magnet_2cm
-    [2.672, 2.980], // 35_disturbed_attached_magnet_4cm
+    [2.658, 2.980], // 35_disturbed_attached_magnet_4cm
 ];
 
 /// The flagship over `rec` with `p` (in f32 lanes or f64): total and inclination RMSE,
@@ -352,7 +352,7 @@ fn correcting_every_eighth_sample_keeps_the_accuracy() {
 }
 
 /// The field tested every `mag_update_every` readings (the default, 4) on their mean: the 9D
-/// mean over the BROAD trials is no worse than testing every reading (measured 2.047° against
+/// mean over the BROAD trials is no worse than testing every reading (measured 2.050° against
 /// 2.057°), and on the undisturbed slow trials (02, 04, 10, 12, 16, 18), where no test can
 /// flip a field decision, the total moves by under 0.01° (measured ≤ 0.002°).
 #[test]

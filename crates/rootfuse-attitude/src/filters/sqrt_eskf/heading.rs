@@ -1,7 +1,7 @@
 //! The flagship's 9D heading: the field test (disturbance detection against the learned
 //! field reference, re-acquisition of a new field) and the scalar heading-offset update.
 
-use super::update::{INITIAL_HEADING_VAR, count_since};
+use super::update::{INITIAL_HEADING_VAR, count_since, every_nth};
 use super::*;
 
 impl<T: Lane> SqrtEskf<T> {
@@ -16,8 +16,8 @@ impl<T: Lane> SqrtEskf<T> {
     /// with `mag_azimuth_tau`.
     ///
     /// The offset's variance grows at every sample; the field is tested, and the heading
-    /// corrected, every `mag_update_every` usable readings (at once where a lane has no
-    /// reference), each test and correction standing for the usable magnetometer time since
+    /// corrected, every `mag_update_every` samples where the reading is usable (at once where
+    /// a lane has no reference), each test and correction standing for the usable magnetometer time since
     /// the last one. Between tests a usable reading is flagged as the last test found the field.
     pub(super) fn correct_heading(&mut self, s: &Screened<T>, w: Vec3<T>, heading_growth: T) {
         let one = T::one();
@@ -79,8 +79,9 @@ impl<T: Lane> SqrtEskf<T> {
         );
     }
 
-    /// The lanes whose field is tested at this sample (`mag_update_every` usable readings
-    /// since the last test, or at once where a lane has no reference), the usable
+    /// The lanes whose field is tested at this sample (every `mag_update_every`th sample
+    /// where the reading is usable, else at the next such tick, the ticks shared by lanes
+    /// started together; at once where a lane has no reference), the usable
     /// magnetometer time since the last test, s (`dt` where every reading is tested:
     /// `0 + dt`), and the mean of those readings: the unit field `h` in the 6D earth frame
     /// (`q6·m̂` of each) and the field norm. The mean, not the test's own reading, because
@@ -100,7 +101,8 @@ impl<T: Lane> SqrtEskf<T> {
         let norm_sum = T::select(first, s.mag_norm, st.mag_norm_sum + s.mag_norm);
         let sum = Vec3::select(s.mag_ok, sum, st.mag_sum);
         let norm_sum = T::select(s.mag_ok, norm_sum, st.mag_norm_sum);
-        let due = s.mag_ok & (samples.simd_ge(self.coef.mag_update_every) | !st.field.known);
+        let tick = every_nth(&mut st.heading_phase, self.coef.mag_update_every);
+        let due = s.mag_ok & (tick | !st.field.known);
         st.heading_samples = T::select(due, zero, samples);
         st.heading_time = T::select(due, zero, time);
         st.mag_sum = sum;

@@ -40,16 +40,18 @@ params! {
         /// a sixth of that. 1 is every sample. The accuracy cost of 2, 4 and 8 is in
         /// `docs/flagship_cost.md`.
         bias_noise_every: f64 = 8.0, "samples", [1.0, 1e6];
-        /// The inclination is corrected every this many samples with a usable accelerometer
-        /// (every sample during the start-up), with the information of all of them: the
+        /// The inclination is corrected every this many samples (where the accelerometer is
+        /// usable, else at the next such tick; every sample during the start-up), with the
+        /// information of all usable samples since the last correction: the
         /// measurement variance is `acc_noise²` over their summed time. The low-passes step
         /// every sample, so the low-passed gravity a correction reads is as current as ever;
         /// the χ² gate and the running means the correction feeds are tested and updated at
         /// the corrections. 1 is every sample. The accuracy and the cost of 1, 2, 4 and 8 are
         /// in `docs/flagship_cost.md`.
         acc_update_every: f64 = 8.0, "samples", [1.0, 1e6];
-        /// 9D: the field is tested, and the heading corrected, every this many samples with a
-        /// usable magnetometer (at once where a lane has no field reference), each test
+        /// 9D: the field is tested, and the heading corrected, every this many samples (where
+        /// the magnetometer is usable, else at the next such tick; at once where a lane has no
+        /// field reference), on the mean of the usable readings since the last test, each test
         /// standing for the usable magnetometer time since the last (its low-pass gains,
         /// timers and measurement variance `mag_noise²` over that time); the heading
         /// variance grows every sample. Between tests a usable reading is flagged as the last
@@ -288,12 +290,14 @@ lane_state! {
         rest_timer: T,
         /// How long (s) every inclination measurement has been gated.
         acc_rejected_time: T,
-        /// Samples with a usable accelerometer, and their summed time (s), since the last
-        /// inclination correction (`acc_update_every`).
-        inclination_samples: T,
+        /// Samples since the last inclination tick (every `acc_update_every` samples, usable
+        /// or not, so that lanes started together stay in phase), and the summed time (s) of
+        /// the samples with a usable accelerometer since the last correction.
+        inclination_phase: T,
         inclination_time: T,
-        /// The same for the magnetometer and the field test (`mag_update_every`), and the
-        /// last test's verdict: the field was disturbed.
+        /// The same for the field test (`mag_update_every`), the usable magnetometer readings
+        /// since the last test, and the last test's verdict: the field was disturbed.
+        heading_phase: T,
         heading_samples: T,
         heading_time: T,
         field_disturbed: T::Mask,
@@ -515,8 +519,9 @@ impl<T: Lane> State<T> {
             rest_acc_lp: Vec3::zero(),
             rest_timer: zero,
             acc_rejected_time: zero,
-            inclination_samples: zero,
+            inclination_phase: zero,
             inclination_time: zero,
+            heading_phase: zero,
             heading_samples: zero,
             heading_time: zero,
             field_disturbed: <T::Mask as Mask>::splat(false),

@@ -39,14 +39,17 @@ impl<T: Lane> SqrtEskf<T> {
             } else {
                 (qt, qb)
             };
-        // The bias noise every `bias_noise_every` samples (at once where the bias is
-        // inflated), with the variance of the samples in between; the attitude noise every
-        // sample. Where nothing is pending, `qb` itself (so 1 gives the bits of folding
-        // every sample).
+        // The bias noise every `bias_noise_every` samples (and at once where the bias is
+        // inflated, which keeps the phase: lanes started together stay in step), with the
+        // variance of the samples in between; the attitude noise every sample. Where nothing
+        // is pending, `qb` itself (so 1 gives the bits of folding every sample).
         let pending = self.state.bias_noise_pending;
-        let samples = self.state.bias_noise_samples + T::one();
+        let tick = every_nth(
+            &mut self.state.bias_noise_samples,
+            self.coef.bias_noise_every,
+        );
         let s = &mut self.state.factor;
-        let due = samples.simd_ge(self.coef.bias_noise_every) | extra_bias_std.simd_ne(T::zero());
+        let due = tick | extra_bias_std.simd_ne(T::zero());
         if due.any() {
             let qb = T::select(pending.simd_eq(T::zero()), qb, (pending + qb * qb).sqrt());
             let mut all = *s;
@@ -59,7 +62,6 @@ impl<T: Lane> SqrtEskf<T> {
             add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
         }
         self.state.bias_noise_pending = T::select(due, T::zero(), pending + qb * qb);
-        self.state.bias_noise_samples = T::select(due, T::zero(), samples);
     }
 
     /// Carlson's square-root scalar update ([`carlson_gains`], then [`carlson_apply`] where
@@ -300,23 +302,18 @@ impl<T: Lane> SqrtEskf<T> {
         ([v.y * scale, -v.x * scale], v_ok)
     }
 
-    /// The lanes that correct their inclination at this sample (`acc_update_every` samples
-    /// with a usable accelerometer since the last correction, or every such sample during the
-    /// start-up) and the usable accelerometer time since the last correction, s, which the
-    /// correction stands for (`dt` where every sample is corrected: `0 + dt`). The count and
-    /// the time start again where a lane corrects.
+    /// The lanes that correct their inclination at this sample (every `acc_update_every`th
+    /// sample where the accelerometer is usable, else at the next such tick; every usable
+    /// sample during the start-up) and the usable accelerometer time since the last
+    /// correction, s, which the correction stands for (`dt` where every sample is corrected:
+    /// `0 + dt`). The time starts again where a lane corrects; the ticks keep their phase, so
+    /// lanes started together correct at the same samples (a correction costs every lane).
     fn inclination_due(&mut self, s: &Screened<T>, starting: T::Mask) -> (T::Mask, T) {
         let zero = T::zero();
         let st = &mut self.state;
-        let none = <T::Mask as Mask>::splat(false);
-        let (samples, time) = count_since(
-            (st.inclination_samples, st.inclination_time),
-            s.acc_ok,
-            s.dt,
-            none,
-        );
-        let due = s.acc_ok & (samples.simd_ge(self.coef.acc_update_every) | starting);
-        st.inclination_samples = T::select(due, zero, samples);
+        let tick = every_nth(&mut st.inclination_phase, self.coef.acc_update_every);
+        let time = st.inclination_time + T::select(s.acc_ok, s.dt, zero);
+        let due = s.acc_ok & (tick | starting);
         st.inclination_time = T::select(due, zero, time);
         (due, time)
     }
@@ -470,9 +467,20 @@ impl<T: Lane> SqrtEskf<T> {
     }
 }
 
-/// The usable samples and their summed time (s) since the last correction, counting this
-/// sample where `ok` (its `dt`), and counting from zero in the lanes `restart`: what
-/// `acc_update_every` and `mag_update_every` read.
+/// Counts one more sample in `phase` (per lane) and tells the lanes where that completes
+/// `every` samples, restarting the count there: ticks every `every` samples, the same
+/// samples in every lane started together whatever their data (a tick that depends on
+/// the data would put lanes out of step, and a correction due in any lane costs all).
+pub(super) fn every_nth<T: Lane>(phase: &mut T, every: T) -> T::Mask {
+    let next = *phase + T::one();
+    let tick = next.simd_ge(every);
+    *phase = T::select(tick, T::zero(), next);
+    tick
+}
+
+/// The usable samples and their summed time (s) since the last field test, counting this
+/// sample where `ok` (its `dt`), and counting from zero in the lanes `restart`: the mean
+/// reading and the time a test stands for (`mag_update_every`).
 pub(super) fn count_since<T: Lane>(
     (samples, time): (T, T),
     ok: T::Mask,
@@ -593,5 +601,45 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     /// orientation was preset with `set_quat` before the first sample).
     fn forget_field_reference(&mut self, lanes: T::Mask) {
         self.state.field.known &= !lanes;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{SqrtEskf, SqrtEskfParams};
+    use crate::{ImuSample, OrientationFilter, Vec3};
+    use rootfuse_lane::{Lane, wide::f32x8};
+
+    /// Lanes whose start-ups end at different samples (each its own time step) still correct
+    /// the inclination, test the field and fold the bias noise at the same samples once
+    /// every lane runs: a correction due in any lane costs every lane, so lanes out of step
+    /// would pay for up to eight times as many.
+    #[test]
+    fn lanes_started_together_correct_at_the_same_samples() {
+        let mut f = SqrtEskf::<f32x8>::new(&SqrtEskfParams::default());
+        let dt = f32x8::from_fn(|i| 0.01 * (1.0 + 0.07 * i as f32));
+        let sample = ImuSample::new(
+            Vec3::from_f64([0.01, -0.02, 0.005]),
+            Vec3::from_f64([0.3, -0.2, 9.8]),
+            Vec3::from_f64([0.0, 20.0, -40.0]),
+        );
+        let mut corrections = 0;
+        for k in 0..3000 {
+            f.update(&sample, dt);
+            let st = &f.state;
+            if k < 2000 {
+                continue; // the longest start-up (the smallest `dt`) is over well before
+            }
+            for (what, v) in [
+                ("inclination", st.inclination_time),
+                ("field", st.heading_time),
+                ("bias noise", st.bias_noise_pending),
+            ] {
+                let reset = v.simd_eq(f32x8::zero());
+                assert!(reset.all() || reset.none(), "{what} at sample {k}: {v:?}");
+            }
+            corrections += usize::from(st.inclination_time.simd_eq(f32x8::zero()).all());
+        }
+        assert_eq!(corrections, 1000 / 8);
     }
 }
