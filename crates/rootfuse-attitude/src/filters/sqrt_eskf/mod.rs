@@ -41,7 +41,7 @@ params! {
         /// `docs/flagship_cost.md`.
         bias_noise_every: f64 = 8.0, "samples", [1.0, 1e6];
         /// The inclination is corrected every this many samples (where the accelerometer is
-        /// usable, else at the next such tick; every sample during the start-up), with the
+        /// usable, else at the next such tick; the start-up too), with the
         /// information of all usable samples since the last correction: the
         /// measurement variance is `acc_noise²` over their summed time. The low-passes step
         /// every sample, so the low-passed gravity a correction reads is as current as ever;

@@ -303,17 +303,18 @@ impl<T: Lane> SqrtEskf<T> {
     }
 
     /// The lanes that correct their inclination at this sample (every `acc_update_every`th
-    /// sample where the accelerometer is usable, else at the next such tick; every usable
-    /// sample during the start-up) and the usable accelerometer time since the last
-    /// correction, s, which the correction stands for (`dt` where every sample is corrected:
-    /// `0 + dt`). The time starts again where a lane corrects; the ticks keep their phase, so
-    /// lanes started together correct at the same samples (a correction costs every lane).
-    fn inclination_due(&mut self, s: &Screened<T>, starting: T::Mask) -> (T::Mask, T) {
+    /// sample where the accelerometer is usable, else at the next such tick; the start-up
+    /// too, where the gate is open and the low-pass short, so that the first seconds do not
+    /// cost 1.7 updates each) and the usable accelerometer time since the last correction, s,
+    /// which the correction stands for (`dt` where every sample is corrected: `0 + dt`). The
+    /// time starts again where a lane corrects; the ticks keep their phase, so lanes started
+    /// together correct at the same samples (a correction costs every lane).
+    fn inclination_due(&mut self, s: &Screened<T>) -> (T::Mask, T) {
         let zero = T::zero();
         let st = &mut self.state;
         let tick = every_nth(&mut st.inclination_phase, self.coef.acc_update_every);
         let time = st.inclination_time + T::select(s.acc_ok, s.dt, zero);
-        let due = s.acc_ok & (tick | starting);
+        let due = s.acc_ok & tick;
         st.inclination_time = T::select(due, zero, time);
         (due, time)
     }
@@ -531,7 +532,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         } else {
             T::zero()
         };
-        let (due, time) = self.inclination_due(&s, starting);
+        let (due, time) = self.inclination_due(&s);
         // Where no lane corrects its inclination at this sample, the measurement is not
         // even formed (`acc_update_every`).
         let mut correction = if due.any() {
