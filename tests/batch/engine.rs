@@ -403,6 +403,7 @@ fn per_channel_specs_equal_scalar_runs() {
         // Lanes that correct their inclination at different samples.
         ("sqrt-eskf", "acc_update_every", [1.0, 3.0, 8.0]),
         ("sqrt-eskf", "mag_update_every", [1.0, 3.0, 8.0]),
+        ("sqrt-eskf", "acc_noise_rotation_share", [1.0, 0.3, 0.1]),
     ] {
         // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
         let specs: Vec<FilterSpec> = (0..recs.len())

@@ -69,6 +69,11 @@ params! {
         /// `|ω − b̂|`, rad/s) at which the two windows weigh equally; the long window's weight
         /// is `x⁴/(1 + x⁴)` of `x = translation / (window_ratio·rotation)`.
         window_ratio: f64 = 1.1, "m/s", [1e-3, 1e3];
+        /// With two windows: the accelerometer noise (`acc_noise`) under rotation, as a share
+        /// of the noise under translation; the share grows with the long window's weight `w`,
+        /// `σ = acc_noise·(s + (1 − s)·w)`. Under rotation the low-passed gravity is good and
+        /// is trusted more; 1 is one noise for all motion.
+        acc_noise_rotation_share: f64 = 1.0, "1", [1e-3, 1.0];
         /// Time constant of the two low-passed motion measures that set the weight.
         window_tau: f64 = 8.0, "s", [1e-3, 1e4];
         /// Noise density of the low-passed inclination measurement (`r = acc_noise²/dt`).
@@ -351,6 +356,7 @@ lane_state! {
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,
+        acc_noise_rotation_share: T,
         window_tau: T,
         acc_var: T,
         acc_gate: T,
@@ -435,6 +441,7 @@ impl<T: Lane> Coefficients<T> {
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),
+            acc_noise_rotation_share: p.coef(|p| p.acc_noise_rotation_share),
             window_tau: p.coef(|p| p.window_tau),
             acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
             acc_gate: p.coef(|p| p.acc_gate),

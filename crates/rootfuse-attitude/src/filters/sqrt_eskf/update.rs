@@ -375,8 +375,16 @@ impl<T: Lane> SqrtEskf<T> {
         let (eps, v_ok) = measured.innovation;
         let lag = &measured.lag;
         let zero = T::zero();
-        let r_nominal = self.per_dt.r_acc;
-        let r_interval = self.per_interval.r_acc;
+        // The noise follows the motion (`acc_noise_rotation_share`; 1, or one window: as is).
+        let share = self.coef.acc_noise_rotation_share;
+        let (r_nominal, r_interval) = if share.simd_lt(T::one()).any() {
+            let w = self.long_window_weight();
+            let s = share + (T::one() - share) * w;
+            let s2 = T::select(self.two_windows(), s * s, T::one());
+            (self.per_dt.r_acc * s2, self.per_interval.r_acc * s2)
+        } else {
+            (self.per_dt.r_acc, self.per_interval.r_acc)
+        };
         // Covariance matching: where the innovations have been larger than predicted, the
         // measurement variance grows by that ratio (bits unchanged where disabled).
         let adapt = self.coef.acc_adapt_window.simd_gt(zero);
