@@ -216,12 +216,18 @@ impl<T: Lane> Quat<T> {
     /// operations (a product with a zero component cannot be folded away in IEEE arithmetic).
     #[inline]
     pub fn up_in_sensor(self) -> Vec3<T> {
-        let two = T::from_f64(2.0);
+        self.half_up_in_sensor() * T::from_f64(2.0)
+    }
+    /// Half of [`up_in_sensor`](Self::up_in_sensor), `[xz − wy, yz + wx, ½ − (x² + y²)]`:
+    /// the same bits halved (scaling by two commutes with rounding), one multiply fewer for a
+    /// caller that folds the factor two into its gains.
+    #[inline]
+    pub fn half_up_in_sensor(self) -> Vec3<T> {
         let (w, x, y, z) = (self.w, self.x, self.y, self.z);
         Vec3::new(
-            two * (x * z - w * y),
-            two * (y * z + w * x),
-            T::one() - two * (x * x + y * y),
+            x * z - w * y,
+            y * z + w * x,
+            T::from_f64(0.5) - (x * x + y * y),
         )
     }
 
@@ -237,7 +243,13 @@ impl<T: Lane> Quat<T> {
     /// depends on its own input only).
     #[inline]
     pub fn exp(v: Vec3<T>) -> Self {
-        let a2 = v.norm_squared();
+        let (cos, sinc) = Self::exp_cos_sinc(v.norm_squared());
+        Self::from_parts(cos, v * sinc)
+    }
+    /// `cos a` and `sin(a)/a` of `a = √a2`: the coefficients of [`exp`](Self::exp), which is
+    /// `[cos a, v·sin(a)/a]` for `a2 = |v|²`; the same rule (series below `|v| = 1/4`).
+    #[inline]
+    pub(crate) fn exp_cos_sinc(a2: T) -> (T, T) {
         let f = |x: f64| T::from_f64(x);
         let cos = T::one()
             - a2 * (f(1.0 / 2.0)
@@ -251,14 +263,23 @@ impl<T: Lane> Quat<T> {
                         - a2 * (f(1.0 / 362_880.0) - a2 * f(1.0 / 39_916_800.0)))));
         let small = a2.simd_lt(f(EXP_SERIES_LIMIT * EXP_SERIES_LIMIT));
         if small.all() {
-            return Self::from_parts(cos, v * sinc);
+            return (cos, sinc);
         }
         let a = a2.sqrt();
         let (s, c) = a.sin_cos();
         let large_sinc = s / T::select(small, T::one(), a);
-        Self::from_parts(
-            T::select(small, cos, c),
-            v * T::select(small, sinc, large_sinc),
+        (T::select(small, cos, c), T::select(small, sinc, large_sinc))
+    }
+    /// `self ⊗ [0, v]`, without the products by the pure quaternion's zero (which IEEE
+    /// arithmetic cannot fold away): `[−q_v·v, q_w·v + q_v × v]`.
+    #[inline]
+    pub(crate) fn times_pure(self, v: Vec3<T>) -> Self {
+        let (w, x, y, z) = (self.w, self.x, self.y, self.z);
+        Self::new(
+            -(x.mul_add(v.x, y.mul_add(v.y, z * v.z))),
+            w.mul_add(v.x, y.mul_add(v.z, -(z * v.y))),
+            w.mul_add(v.y, z.mul_add(v.x, -(x * v.z))),
+            w.mul_add(v.z, x.mul_add(v.y, -(y * v.x))),
         )
     }
     /// The rotation by the rotation vector `phi` (axis·angle, rad): `exp(phi/2)`.

@@ -37,14 +37,15 @@ pub struct Mahony<T: Lane> {
     q: Quat<T>,
     bias: Vec3<T>,
     initialized: T::Mask,
-    kp: T,
-    ki: T,
+    /// `2·Kp` and `2·Ki`: the update works with `e/2` (see `update`).
+    kp2: T,
+    ki2: T,
     max_bias: T,
     /// `max_bias²`: the anti-windup test compares squared norms too.
     max_bias2: T,
-    /// `bias_gate²`: the gate compares squared norms (no square root on the update's
-    /// dependency chain).
-    bias_gate2: T,
+    /// `bias_gate²/4`: the gate compares the squared norm of `e/2` (no square root on the
+    /// update's dependency chain).
+    bias_gate2_quarter: T,
     nine_d: bool,
     limits: ScreenLimits,
     rejections: Rejections<T>,
@@ -61,11 +62,11 @@ impl<T: Lane> Mahony<T> {
             q: Quat::identity(),
             bias: Vec3::zero(),
             initialized: <T::Mask as Mask>::splat(false),
-            kp: p.coef(|p| p.kp),
-            ki: p.coef(|p| p.ki),
+            kp2: p.coef(|p| 2.0 * p.kp),
+            ki2: p.coef(|p| 2.0 * p.ki),
             max_bias: p.coef(|p| p.max_bias),
             max_bias2: p.coef(|p| p.max_bias * p.max_bias),
-            bias_gate2: p.coef(|p| p.bias_gate * p.bias_gate),
+            bias_gate2_quarter: p.coef(|p| p.bias_gate * p.bias_gate / 4.0),
             nine_d: p.first().dof.uses_magnetometer(),
             limits: p.first().screen_limits(),
             rejections: Rejections::default(),
@@ -79,19 +80,24 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
-        let v_hat = q.up_in_sensor();
-        let e_acc = Vec3::select(s.acc_ok, s.acc.cross(v_hat), Vec3::zero());
-        // 6D is the same for every lane and discards this term: skipping it changes no bits.
-        let e_mag = if self.nine_d {
+        // The error is formed halved, `e/2 = â × v̂/2 + Δψ/2·v̂`, and the factor two folded into
+        // the gains: the same bits (scaling by two commutes with rounding), one multiply fewer
+        // on the dependency chain.
+        let v_half = q.half_up_in_sensor();
+        let e_acc = Vec3::select(s.acc_ok, s.acc.cross(v_half), Vec3::zero());
+        // 6D is the same for every lane and discards this term: skipping it changes no bits
+        // (but the sign of a zero).
+        let e_half = if self.nine_d {
             let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
-            Vec3::select(s.mag_ok & heading_ok, v_hat * dpsi, Vec3::zero())
+            e_acc + Vec3::select(s.mag_ok & heading_ok, v_half * dpsi, Vec3::zero())
         } else {
-            Vec3::zero()
+            // Not `e_acc + 0`: IEEE arithmetic cannot fold that addition away (−0 + 0 = +0),
+            // and it would lengthen the dependency chain.
+            e_acc
         };
-        let e = e_acc + e_mag;
 
-        let learn = e.norm_squared().simd_lt(self.bias_gate2);
-        let learned = self.bias - e * (self.ki * s.dt);
+        let learn = e_half.norm_squared().simd_lt(self.bias_gate2_quarter);
+        let learned = self.bias - e_half * (self.ki2 * s.dt);
         // A uniform branch, predicted, takes the gate's comparison off the dependency chain;
         // every lane gets what the select would give it.
         let bias = if learn.all() {
@@ -110,7 +116,7 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         } else {
             bias
         };
-        let omega = s.gyr - bias + e * self.kp;
+        let omega = s.gyr - bias + e_half * self.kp2;
         let q_new = integrate_gyro(q, omega, s.dt);
 
         self.q = Quat::select(s.step, q_new, self.q);
