@@ -42,7 +42,33 @@ pub const GYRO_SERIES_A2: f64 = 0.01;
 pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
     // `dt/2` first: halving is exact, so this is `ω·dt·½` bit for bit with one multiply
     // fewer on the dependency chain through `ω` (`dt` does not depend on the state).
-    let v = omega * (dt * T::from_f64(0.5));
+    times_exp(q, omega * (dt * T::from_f64(0.5)), false)
+}
+
+/// Turns `q` by the earth-frame rotation vector `phi` (axis·angle, rad): `exp(phi/2) ⊗ q`,
+/// renormalised; `q` a unit quaternion (to rounding). A correction applied in the earth frame
+/// (toward up, about earth-z), computed as [`integrate_gyro`] computes its step, by the same
+/// rule (series below [`GYRO_SERIES_A2`] in `|phi/2|²`) and with the same renormalisation by
+/// the input's own norm.
+///
+/// ```
+/// use rootfuse_attitude::{Quat, Vec3, blocks::turn_in_earth};
+/// let q = Quat::<f64>::from_euler_zyx(0.3, 0.1, -0.2);
+/// let phi = Vec3::new(0.01, -0.02, 0.005);
+/// let exact = Quat::from_rotation_vector(phi) * q;
+/// let t = turn_in_earth(q, phi);
+/// assert!((t.w - exact.w).abs() < 1e-15 && (t.x - exact.x).abs() < 1e-15);
+/// ```
+#[inline]
+pub fn turn_in_earth<T: Lane>(q: Quat<T>, phi: Vec3<T>) -> Quat<T> {
+    times_exp(q, phi * T::from_f64(0.5), true)
+}
+
+/// `q ⊗ exp(v)` (`earth` false) or `exp(v) ⊗ q` (`earth` true) for a pure `v`, as
+/// `q·cos a + (q ⊗ [0, v])·(sin a / a)` (or `[0, v] ⊗ q`), `q` renormalised by its own norm
+/// first (see [`integrate_gyro`]).
+#[inline(always)]
+fn times_exp<T: Lane>(q: Quat<T>, v: Vec3<T>, earth: bool) -> Quat<T> {
     let a2 = v.norm_squared();
     let small = a2.simd_lt(T::from_f64(GYRO_SERIES_A2));
     let (cos, sinc) = if small.all() {
@@ -53,7 +79,11 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
         (T::select(small, cos, c), T::select(small, sinc, s))
     };
     let unit = q.scale(T::from_f64(1.5) - T::from_f64(0.5) * q.norm_squared());
-    let turned = unit.times_pure(v);
+    let turned = if earth {
+        unit.pure_times(v)
+    } else {
+        unit.times_pure(v)
+    };
     Quat::new(
         turned.w.mul_add(sinc, unit.w * cos),
         turned.x.mul_add(sinc, unit.x * cos),
@@ -62,35 +92,28 @@ pub fn integrate_gyro<T: Lane>(q: Quat<T>, omega: Vec3<T>, dt: T) -> Quat<T> {
     )
 }
 
-/// `cos a` and `sin a / a` from their Taylor series in `a² < `[`GYRO_SERIES_A2`], by Horner:
-/// through `a⁸` in `f64` (the first dropped term below `a¹⁰/10! < 3·10⁻¹⁷`), through `a⁴` in
-/// `f32` (below `a⁶/6! < 1.4·10⁻⁹`, a hundredth of an f32 ulp of 1).
+/// `cos a` and `sin a / a` from their Taylor series in `a² < `[`GYRO_SERIES_A2`]: through
+/// `a⁸` in `f64` (the first dropped term below `a¹⁰/10! < 3·10⁻¹⁷`), through `a⁴` in `f32`
+/// (below `a⁶/6! < 1.4·10⁻⁹`, a hundredth of an f32 ulp of 1). Evaluated by powers of `a²`
+/// side by side (Estrin's scheme), not Horner's nested chain: the series sits on Mahony's
+/// dependency chain, and Estrin's depth grows with the logarithm of the term count.
 #[inline(always)]
 fn gyro_series<T: Lane>(a2: T) -> (T, T) {
     let c = |x: f64| T::from_f64(x);
+    let a4 = a2 * a2;
     if is_f64::<T>() {
         // cos a = 1 − a²/2! + a⁴/4! − a⁶/6! + a⁸/8!, sin a / a = 1 − a²/3! + … + a⁸/9!.
-        let cos = a2.mul_add(
-            a2.mul_add(
-                a2.mul_add(a2.mul_add(c(1.0 / 40320.0), c(-1.0 / 720.0)), c(1.0 / 24.0)),
-                c(-1.0 / 2.0),
-            ),
-            T::one(),
-        );
-        let sinc = a2.mul_add(
-            a2.mul_add(
-                a2.mul_add(
-                    a2.mul_add(c(1.0 / 362880.0), c(-1.0 / 5040.0)),
-                    c(1.0 / 120.0),
-                ),
-                c(-1.0 / 6.0),
-            ),
-            T::one(),
-        );
+        let a8 = a4 * a4;
+        let cos = a2.mul_add(c(-1.0 / 2.0), T::one())
+            + a4 * a2.mul_add(c(-1.0 / 720.0), c(1.0 / 24.0))
+            + a8 * c(1.0 / 40320.0);
+        let sinc = a2.mul_add(c(-1.0 / 6.0), T::one())
+            + a4 * a2.mul_add(c(-1.0 / 5040.0), c(1.0 / 120.0))
+            + a8 * c(1.0 / 362880.0);
         (cos, sinc)
     } else {
-        let cos = a2.mul_add(a2.mul_add(c(1.0 / 24.0), c(-1.0 / 2.0)), T::one());
-        let sinc = a2.mul_add(a2.mul_add(c(1.0 / 120.0), c(-1.0 / 6.0)), T::one());
+        let cos = a2.mul_add(c(-1.0 / 2.0), T::one()) + a4 * c(1.0 / 24.0);
+        let sinc = a2.mul_add(c(-1.0 / 6.0), T::one()) + a4 * c(1.0 / 120.0);
         (cos, sinc)
     }
 }

@@ -282,6 +282,18 @@ impl<T: Lane> Quat<T> {
             w.mul_add(v.z, x.mul_add(v.y, -(y * v.x))),
         )
     }
+    /// `[0, v] ⊗ self`, without the products by the pure quaternion's zero:
+    /// `[−v·q_v, q_w·v + v × q_v]`.
+    #[inline]
+    pub(crate) fn pure_times(self, v: Vec3<T>) -> Self {
+        let (w, x, y, z) = (self.w, self.x, self.y, self.z);
+        Self::new(
+            -(x.mul_add(v.x, y.mul_add(v.y, z * v.z))),
+            w.mul_add(v.x, v.y.mul_add(z, -(v.z * y))),
+            w.mul_add(v.y, v.z.mul_add(x, -(v.x * z))),
+            w.mul_add(v.z, v.x.mul_add(y, -(v.y * x))),
+        )
+    }
     /// The rotation by the rotation vector `phi` (axis·angle, rad): `exp(phi/2)`.
     ///
     /// This is the exact gyro-integration step: `q_{k+1} = q_k ⊗ from_rotation_vector(ω·dt)`.

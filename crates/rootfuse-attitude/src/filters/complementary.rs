@@ -4,7 +4,7 @@
 use super::LaneParams;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params, up};
 use super::{StateError, quat_without_covariance};
-use crate::blocks::{LowPassGain, integrate_gyro, magnetic_heading_error};
+use crate::blocks::{LowPassGain, integrate_gyro, magnetic_heading_error, turn_in_earth};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -61,14 +61,55 @@ impl<T: Lane> Complementary<T> {
 }
 
 /// The earth-frame rotation vector that turns unit `a_earth` toward `up`, of angle
-/// `atan2(|a × up|, a·up)`; `a × up` scaled by angle/sin with the series near zero.
+/// `atan2(|a × up|, a·up)`: `a × up` scaled by angle/sin.
+///
+/// Where the tilt is below about 5.7° (`|a × up|² < 0.01`, `a` above the horizon: every
+/// correction of a converged filter without strong acceleration) angle/sin is `asin(s)/s`, from
+/// its series in `s²` (through `s¹⁴` in `f64`, `s⁶` in `f32`; the first dropped term below
+/// `1.2·10⁻¹⁸` and `3·10⁻¹⁰`), with no square root, `atan2` or division; where every lane is
+/// there only the series is computed, otherwise each lane selects by its own tilt.
 #[inline]
 pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
     let axis = a_earth.cross(up());
-    let s = axis.norm();
+    let s2 = axis.norm_squared();
+    let near = s2.simd_lt(T::from_f64(TILT_SERIES_S2)) & a_earth.z.simd_gt(T::zero());
+    if near.all() {
+        return axis * asin_ratio_series(s2);
+    }
+    let s = s2.sqrt();
     let angle = s.atan2(a_earth.z);
     let small = s.simd_lt(T::from_f64(1e-4)) & a_earth.z.simd_gt(T::zero());
-    axis * T::select(small, T::one(), angle / s)
+    let exact = T::select(small, T::one(), angle / s);
+    axis * T::select(near, asin_ratio_series(s2), exact)
+}
+
+/// Below this `|a × up|²` (a tilt of about 5.7°) [`tilt_correction`] takes angle/sin from its
+/// series.
+const TILT_SERIES_S2: f64 = 0.01;
+
+/// `asin(s)/s = Σ C(2n, n)·s²ⁿ/(4ⁿ·(2n + 1))` at `s² < TILT_SERIES_S2`, by Horner in `s²`.
+#[inline(always)]
+fn asin_ratio_series<T: Lane>(s2: T) -> T {
+    const COEFFICIENTS: [f64; 8] = [
+        1.0,
+        1.0 / 6.0,
+        3.0 / 40.0,
+        5.0 / 112.0,
+        35.0 / 1152.0,
+        63.0 / 2816.0,
+        231.0 / 13312.0,
+        143.0 / 10240.0,
+    ];
+    let terms = if core::mem::size_of::<T::Scalar>() == 8 {
+        8
+    } else {
+        4
+    };
+    let mut p = T::from_f64(COEFFICIENTS[terms - 1]);
+    for &c in COEFFICIENTS[..terms - 1].iter().rev() {
+        p = s2.mul_add(p, T::from_f64(c));
+    }
+    p
 }
 
 impl<T: Lane> OrientationFilter<T> for Complementary<T> {
@@ -79,14 +120,14 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
 
         let k_acc = self.k_acc.gain(s.dt);
         let tilt = tilt_correction(q.rotate(s.acc)) * k_acc;
-        let q_acc = (Quat::from_rotation_vector(tilt) * q).renormalize();
+        let q_acc = turn_in_earth(q, tilt);
         q = Quat::select(s.acc_ok, q_acc, q);
 
         // 6D is the same for every lane and discards this correction: skipping it changes no bits.
         if self.nine_d {
             let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
             let k_mag = self.k_mag.gain(s.dt);
-            let q_mag = (Quat::from_heading(dpsi * k_mag) * q).renormalize();
+            let q_mag = turn_in_earth(q, Vec3::new(T::zero(), T::zero(), dpsi * k_mag));
             q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
         }
 
