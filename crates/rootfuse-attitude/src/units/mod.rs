@@ -428,4 +428,4 @@ impl fmt::Display for Units {
 
 // What the data suggest: magnitude histograms, the tilt test, findings.
 mod check;
-pub use check::{CHECK_SAMPLES, MAX_PLAUSIBLE_RATE, UnitCheck, UnitFinding};
+pub use check::{CHECK_SAMPLES, DECIDED_SAMPLES, MAX_PLAUSIBLE_RATE, UnitCheck, UnitFinding};
