@@ -105,6 +105,21 @@ def test_a_file_path_is_read_in_rust(fleet, tmp_path):
         ra.estimate_table(six, "flagship", dof=9)
 
 
+def test_datasets_and_parquet_files_are_streamed(fleet, tmp_path):
+    import pyarrow.dataset as ds
+
+    table, cli_est = fleet
+    parquet = tmp_path / "fleet.parquet"
+    # Extra columns (the truth here) are not read: only the IMU columns are projected.
+    pq.write_table(table.append_column("extra", pa.array(np.zeros(table.num_rows))), parquet, row_group_size=1000)
+    for source in (ds.dataset(parquet), ds.dataset(parquet).scanner(), pq.ParquetFile(parquet)):
+        got = ra.estimate_table(source, "flagship", flags=True)
+        assert got.num_rows == table.num_rows, type(source)
+        assert got.column("device").equals(table.column("device"))
+        _assert_same(got, cli_est)
+    _assert_same(ra.estimate_stream(pq.ParquetFile(parquet), "flagship", flags=True).read_all(), cli_est)
+
+
 def test_float32_columns_and_options(fleet):
     table, _ = fleet
     f32 = table.set_column(table.column_names.index("gx"), "gx", table.column("gx").cast(pa.float32()))

@@ -25,7 +25,7 @@ Spark (4.x): :func:`run_spark` in two layouts, both running many devices per cal
 import itertools
 import os
 import warnings
-from typing import Any, Callable, Dict, Iterable, Iterator, Optional
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional
 
 # pyarrow ships no type information; an absent pyarrow fails at import, not here.
 import pyarrow as pa  # type: ignore[import-untyped, import-not-found, unused-ignore]
@@ -58,11 +58,26 @@ def estimate_names(
 
 
 def _as_stream(source: Any) -> Any:
-    """A pyarrow RecordBatch becomes a one-batch table; anything else (a stream, a path) is
-    passed on."""
+    """A pyarrow RecordBatch becomes a one-batch table; a ``pyarrow.dataset`` Dataset or
+    Scanner and a ``pyarrow.parquet.ParquetFile`` become a stream of their record batches as
+    pyarrow reads them (never a whole table); anything else (a stream, a path) is passed on."""
     if isinstance(source, pa.RecordBatch):
         return pa.Table.from_batches([source])
+    if not hasattr(source, "__arrow_c_stream__"):
+        if callable(getattr(source, "scanner", None)):  # a Dataset: read only the IMU columns
+            return source.scanner(columns=_imu_columns(source.schema.names)).to_reader()
+        if callable(getattr(source, "to_reader", None)):  # a Scanner
+            return source.to_reader()
+        if callable(getattr(source, "iter_batches", None)) and hasattr(source, "schema_arrow"):  # a ParquetFile
+            columns = _imu_columns(source.schema_arrow.names)
+            schema = pa.schema([source.schema_arrow.field(c) for c in columns])
+            return pa.RecordBatchReader.from_batches(schema, source.iter_batches(columns=columns))
     return source
+
+
+def _imu_columns(names: List[str]) -> List[str]:
+    """The columns of ``names`` a filter reads, in their order."""
+    return [c for c in (DEVICE, "t", *_GYR, *_ACC, *_MAG) if c in names]
 
 
 def _is_path(source: Any) -> bool:
@@ -146,7 +161,9 @@ def estimate_stream(source: Any, filter: str, **options: Any) -> pa.RecordBatchR
     (``flags=True``, uint8). Memory stays flat for a stream of any length.
 
     ``source``: a pyarrow ``Table``, ``RecordBatch`` or ``RecordBatchReader``, any object
-    with ``__arrow_c_stream__``, or the path (``str`` or ``os.PathLike``) of a Parquet or
+    with ``__arrow_c_stream__``, a ``pyarrow.dataset`` Dataset or Scanner or a
+    ``pyarrow.parquet.ParquetFile`` (streamed batch by batch as pyarrow reads them, only the
+    IMU columns of a Dataset or ParquetFile), or the path (``str`` or ``os.PathLike``) of a Parquet or
     Arrow IPC fleet file, which is read in Rust exactly as ``rootfuse run`` reads it (the
     fastest way in: nothing is materialised in Python first; a file that cannot be opened
     raises at the call, naming it, ``FileNotFoundError`` for a missing one). ``options``: ``precision`` ("f64" default, or "f32"),
@@ -159,8 +176,9 @@ def estimate_stream(source: Any, filter: str, **options: Any) -> pa.RecordBatchR
 
 
 def estimate_table(table: Any, filter: str, *, sort: bool = False, **options: Any) -> pa.Table:
-    """Estimates of a fleet table (or record batch, any Arrow stream, or the path of a Parquet
-    or Arrow IPC file, read in Rust) as a ``pyarrow.Table``: :func:`estimate_stream` read
+    """Estimates of a fleet table (or record batch, any Arrow stream, a ``pyarrow.dataset``
+    Dataset or a ``ParquetFile`` streamed as pyarrow reads it, or the path of a Parquet or
+    Arrow IPC file, read in Rust) as a ``pyarrow.Table``: :func:`estimate_stream` read
     whole. With ``sort=True`` the rows are first put in time order (for rows that come in no
     particular order, such as a Spark group; a file is then read whole by pyarrow first), and
     the estimates follow that order. Raises ``ValueError`` naming the row and column for a time
@@ -319,7 +337,7 @@ def run_spark(
 
     schema_options = {k: options[k] for k in ("bias", "covariance", "flags", "dof") if k in options}
     schema = spark_schema(filter, device_type=device_type, **schema_options)
-    used = [c for c in (DEVICE, "t", *_GYR, *_ACC, *_MAG) if c in df.columns]
+    used = _imu_columns(df.columns)
     df = df.select(*used)
     if layout == "clustered":
         return df.mapInArrow(batches_function(filter, **options), schema)
