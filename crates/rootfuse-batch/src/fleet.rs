@@ -58,10 +58,18 @@ pub fn samples_with_missing_imu(
     acc: &[Vec3<f64>],
     mag: Option<&[Vec3<f64>]>,
 ) -> usize {
-    let finite = |v: &Vec3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
-    (0..gyr.len().min(acc.len()))
-        .filter(|&r| !finite(&gyr[r]) || !finite(&acc[r]) || mag.is_some_and(|m| !finite(&m[r])))
-        .count()
+    // `x·0` is 0 for a finite `x` and NaN otherwise, so a row's sum of them is 0 exactly when
+    // every value is finite: one test per row, no branch per value.
+    let zero = |v: &Vec3<f64>| v.x * 0.0 + v.y * 0.0 + v.z * 0.0;
+    let n = gyr.len().min(acc.len());
+    match mag {
+        Some(m) => (0..n)
+            .filter(|&r| zero(&gyr[r]) + zero(&acc[r]) + zero(&m[r]) != 0.0)
+            .count(),
+        None => (0..n)
+            .filter(|&r| zero(&gyr[r]) + zero(&acc[r]) != 0.0)
+            .count(),
+    }
 }
 
 /// The estimates of a block, row by row (`quat[r]` belongs to row `r` of the block).
@@ -466,6 +474,7 @@ where
             slot: Vec::new(),
             open: None,
             rows: Vec::new(),
+            extras: Vec::new(),
         };
         fleet.plan(self.device_specs)?;
         Ok(Box::new(fleet))
@@ -484,7 +493,9 @@ struct TypedFleet<L: Lane, F> {
     /// The estimates of the block being run, chunk after chunk. Kept from block to block
     /// (as long as the longest block): fresh buffers for every block had the kernel map and
     /// clear their pages again each time, about a sixth of a Mahony fleet run.
-    rows: Vec<RowEstimate>,
+    rows: Vec<RowQuat>,
+    /// Bias, covariance and flags of the same rows, when asked for (else empty).
+    extras: Vec<RowExtras>,
 }
 
 impl<L: Lane, F: RegisteredFilter<L>> TypedFleet<L, F> {
@@ -536,24 +547,30 @@ impl<L: Lane, F: RegisteredFilter<L>> TypedFleet<L, F> {
     }
 }
 
-/// The estimate of one row, computed in a chunk and scattered into the block's estimates.
+/// The orientation of one row, computed in a chunk and scattered into the block's estimates.
+/// Kept small (40 bytes): the scatter reads one per row, and a whole [`Estimate`] per row
+/// (136 bytes) made that loop a cache-miss hot spot of a fleet run.
 #[derive(Clone, Copy)]
-struct RowEstimate {
+struct RowQuat {
     row: u32,
-    step: Estimate,
+    quat: Quat<f64>,
 }
 
-impl RowEstimate {
+impl RowQuat {
     /// A slot not yet written.
     const UNSET: Self = Self {
         row: u32::MAX,
-        step: Estimate {
-            quat: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
-            bias: None,
-            covariance: None,
-            flags: None,
-        },
+        quat: Quat::new(f64::NAN, f64::NAN, f64::NAN, f64::NAN),
     };
+}
+
+/// What else a row's estimate holds when asked for ([`Columns`]): at the same index as its
+/// [`RowQuat`].
+#[derive(Clone, Copy, Default)]
+struct RowExtras {
+    bias: Option<Vec3<f64>>,
+    covariance: Option<[f64; 6]>,
+    flags: Option<u8>,
 }
 
 impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
@@ -577,25 +594,32 @@ impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
         // is active at step `k` exactly when its device has a `k`-th row, so a chunk fills
         // as many slots as its devices have rows.
         let total = sources.iter().map(|s| s.len()).sum();
+        let extras = columns.bias || columns.covariance || columns.flags;
         self.rows.clear();
-        self.rows.resize(total, RowEstimate::UNSET);
+        self.rows.resize(total, RowQuat::UNSET);
+        self.extras.clear();
+        self.extras
+            .resize(if extras { total } else { 0 }, RowExtras::default());
         let mut parts = Vec::with_capacity(self.batches.len());
-        let mut rest = self.rows.as_mut_slice();
+        let (mut rest, mut rest_extras) = (self.rows.as_mut_slice(), self.extras.as_mut_slice());
         for srcs in sources.chunks(L::LANES) {
-            let (part, tail) = rest.split_at_mut(srcs.iter().map(|s| s.len()).sum());
-            parts.push(part);
-            rest = tail;
+            let len = srcs.iter().map(|s| s.len()).sum();
+            let (part, tail) = rest.split_at_mut(len);
+            let (part_extras, tail_extras) = rest_extras.split_at_mut(if extras { len } else { 0 });
+            parts.push((part, part_extras));
+            (rest, rest_extras) = (tail, tail_extras);
         }
         self.batches
             .par_iter_mut()
             .zip(parts)
             .zip(sources.par_chunks(L::LANES))
-            .for_each(|((batch, part), srcs)| {
+            .for_each(|((batch, (part, part_extras)), srcs)| {
                 let steps = srcs.iter().map(|s| s.len()).max().unwrap_or(0);
                 if steps == 0 {
                     return;
                 }
                 let mut slots = part.iter_mut();
+                let mut slots_extras = part_extras.iter_mut();
                 let chunk = &mut batch.chunks_mut()[0];
                 chunk.run_sources(srcs, 0..steps, |k, chunk, active| {
                     let view = Estimate::lanes(chunk.filter(), columns);
@@ -603,25 +627,39 @@ impl<L: Lane, F: RegisteredFilter<L> + Send> FleetEngine for TypedFleet<L, F> {
                         if (active >> i) & 1 == 1
                             && let Some(slot) = slots.next()
                         {
-                            *slot = RowEstimate {
+                            let e = view.lane(i);
+                            *slot = RowQuat {
                                 row: src.rows[k],
-                                step: view.lane(i),
+                                quat: e.quat,
                             };
+                            if let Some(x) = slots_extras.next() {
+                                *x = RowExtras {
+                                    bias: e.bias,
+                                    covariance: e.covariance,
+                                    flags: e.flags,
+                                };
+                            }
                         }
                     }
                 });
             });
-        for r in self.rows.iter().filter(|r| r.row != u32::MAX) {
+        for (j, r) in self.rows.iter().enumerate() {
+            if r.row == u32::MAX {
+                continue;
+            }
             let i = r.row as usize;
             est.kept[i] = true;
-            est.quat[i] = r.step.quat;
-            if let Some(b) = r.step.bias {
+            est.quat[i] = r.quat;
+            let Some(x) = self.extras.get(j) else {
+                continue;
+            };
+            if let Some(b) = x.bias {
                 est.bias[i] = b;
             }
-            if let (Some(p), Some(slot)) = (r.step.covariance, est.covariance.get_mut(i)) {
+            if let (Some(p), Some(slot)) = (x.covariance, est.covariance.get_mut(i)) {
                 *slot = p;
             }
-            if let Some(f) = r.step.flags {
+            if let Some(f) = x.flags {
                 est.flags[i] = f;
             }
         }

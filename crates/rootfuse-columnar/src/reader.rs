@@ -639,7 +639,9 @@ fn float_values(col: &ArrayRef) -> Option<Vec<f64>> {
 /// Device numbers of a device column: `Err(Some(row))` for a null, `Err(None)` for a type
 /// that is neither integer nor string.
 fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<usize>> {
-    if let Some(r) = (0..col.len()).find(|&r| col.is_null(r)) {
+    if col.null_count() > 0
+        && let Some(r) = (0..col.len()).find(|&r| col.is_null(r))
+    {
         return Err(Some(r));
     }
     let mut ids = Vec::with_capacity(col.len());
