@@ -14,6 +14,7 @@ use parquet::arrow::arrow_reader::{
 use rootfuse_attitude::Vec3;
 use rootfuse_attitude::units::Units;
 use rootfuse_batch::FleetBlock;
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -537,7 +538,7 @@ impl FleetReader {
             column: column.to_string(),
             problem,
         };
-        let column = |name: &str| -> Result<Vec<f64>, ColumnarError> {
+        let column = |name: &str| -> Result<Cow<'_, [f64]>, ColumnarError> {
             let col = batch
                 .column_by_name(name)
                 .ok_or_else(|| ColumnarError::MissingColumn {
@@ -551,7 +552,7 @@ impl FleetReader {
                 })?;
             float_values(col).ok_or_else(|| type_error(&self.file, name, col.data_type()))
         };
-        let t = column("t")?;
+        let t = column("t")?.into_owned();
         if let Some(r) = t.iter().position(|v| v.is_nan()) {
             let null = batch.column_by_name("t").is_some_and(|c| c.is_null(r));
             let what = if null { "null" } else { "NaN" };
@@ -617,7 +618,12 @@ impl FleetReader {
 }
 
 /// Values of a float32 or float64 column as `f64`, nulls as NaN; `None` for another type.
-fn float_values(col: &ArrayRef) -> Option<Vec<f64>> {
+/// A float64 column without nulls is borrowed, not copied (the IMU columns are read once,
+/// into the block's vectors).
+fn float_values(col: &ArrayRef) -> Option<Cow<'_, [f64]>> {
+    if *col.data_type() == DataType::Float64 && col.null_count() == 0 {
+        return Some(Cow::Borrowed(col.as_primitive::<Float64Type>().values()));
+    }
     let mut values: Vec<f64> = match col.data_type() {
         DataType::Float64 => col.as_primitive::<Float64Type>().values().to_vec(),
         DataType::Float32 => col
@@ -633,7 +639,7 @@ fn float_values(col: &ArrayRef) -> Option<Vec<f64>> {
             values[r] = f64::NAN;
         }
     }
-    Some(values)
+    Some(Cow::Owned(values))
 }
 
 /// Device numbers of a device column: `Err(Some(row))` for a null, `Err(None)` for a type
