@@ -81,7 +81,7 @@ pub const MAX_PLAUSIBLE_RATE: f64 = 35.0;
 pub const CHECK_SAMPLES: u64 = 200_000;
 
 /// A check stops earlier, once it has this many samples and its gyroscope test has seen
-/// [`DECIDED_TURN`] of tilting: every median then sits in its bin and the gyroscope's
+/// `DECIDED_TURN` (10 rad) of tilting: every median then sits in its bin and the gyroscope's
 /// explained shares average hundreds of windows, so more samples of the same file change no
 /// finding, and a long fleet channel no longer pays the check at every sample (it cost a
 /// fifth of `rootfuse run` on a fleet of 10-minute devices).
@@ -300,7 +300,7 @@ impl UnitCheck {
             return;
         }
         self.samples += 1;
-        if self.samples % DECIDED_EVERY == 0 && self.samples >= DECIDED_SAMPLES {
+        if self.samples.is_multiple_of(DECIDED_EVERY) && self.samples >= DECIDED_SAMPLES {
             self.decided = self.tilt.as_ref().is_some_and(|t| t.turned >= DECIDED_TURN);
         }
         let dt = t - self.previous_t;
