@@ -8,6 +8,9 @@ use crate::quat::Quat;
 use crate::vec3::Vec3;
 use rootfuse_lane::{Lane, Mask, Mat};
 
+/// Standard gravity, m/s² (the `g` of `acc=g`).
+pub const STANDARD_GRAVITY: f64 = 9.80665;
+
 /// Below this `a² = |ω·dt/2|²` (rad², i.e. `a < 0.1`, 1150 °/s at 100 Hz) [`integrate_gyro`]
 /// takes `cos a` and `sin a / a` from their Taylor series in `a²`. Through the `a⁸` terms the
 /// truncation error is below `a¹⁰/10! < 3e-17` (under one ulp of f64), so the series is as

@@ -34,8 +34,7 @@ use std::format;
 use std::string::{String, ToString};
 use std::vec::Vec;
 
-/// Standard gravity, m/s² (the `g` of `acc=g`).
-pub const STANDARD_GRAVITY: f64 = 9.80665;
+pub use crate::blocks::STANDARD_GRAVITY;
 
 /// One of the quantities a recording carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -10,7 +10,7 @@ use super::upper_factor::{add_diagonal_noise, carlson_apply, carlson_gains};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
 };
-use crate::blocks::{field_heading_error, lowpass_gain, tilt_from_acc};
+use crate::blocks::{STANDARD_GRAVITY, field_heading_error, lowpass_gain, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 
@@ -119,6 +119,14 @@ params! {
         /// shared BROAD trials' coverage in the 0.90–0.98 band; the simulator's IMU (0.3 %)
         /// needs its own 0.003 (`docs/accuracy.md`). Report only.
         gyr_scale_error: f64 = 0.0005, "1", [0.0, 1.0];
+        /// A sustained acceleration as a model error of the report: both inclination
+        /// variances add `acc_excess_scale · max(|ā|²/g² − 1, 0)`, `ā` the low-passed specific
+        /// force the inclination is measured from, `g²` the least `|a|²` seen at rest (standard
+        /// gravity before the first rest). A sustained
+        /// horizontal acceleration `a_h` (a vehicle's turn) tilts `ā` by `atan(|a_h|/g)` while
+        /// the innovation vanishes; `|ā|² − g² = |a_h|²` shows it. 0 (off) until
+        /// cross-validated (`docs/accuracy.md`). Report only.
+        acc_excess_scale: f64 = 0.0, "1", [0.0, 100.0];
         /// Offline only (the forward–backward smoother, [`SqrtEskfParams::for_smoothing`]):
         /// both passes run with `tau_acc` and `tau_acc_long` times this. Each pass's low-pass
         /// lag is cancelled by the other's, so offline longer time constants remove more
@@ -293,6 +301,10 @@ lane_state! {
         rest_acc_lp: Vec3<T>,
         /// How long (s) the rest conditions have held.
         rest_timer: T,
+        /// The least `|a|²` low-passed at rest, (m/s²)² (∞ before the first rest): gravity as
+        /// this accelerometer measures it, for the `acc_excess_scale` report term. The least,
+        /// because a steady acceleration in a straight line passes for rest and reads more.
+        rest_gravity2: T,
         /// How long (s) every inclination measurement has been gated.
         acc_rejected_time: T,
         /// Samples since the last inclination tick (every `acc_update_every` samples, usable
@@ -322,7 +334,8 @@ lane_state! {
         /// Running mean square of the magnetic heading innovation (rad², 9D), time constant
         /// `model_error_window`.
         heading_innovation_ms: T,
-        /// `(gyr_scale_error · |ω| · tau_acc)²` at the last inclination update, rad². Kept,
+        /// `(gyr_scale_error · |ω| · tau_acc)²` plus the `acc_excess_scale` term at the last
+        /// inclination update, rad². Kept,
         /// not derived from `long.rotation` when reported, so that `set_quat` with a `sigma`
         /// clears it with the other model errors (the rotation measure is not reset).
         scale_error2: T,
@@ -365,6 +378,7 @@ lane_state! {
         model_error_window: T,
         heading_model_error_scale: T,
         gyr_scale_error: T,
+        acc_excess_scale: T,
         /// `acc_spike²`, (m/s²)².
         acc_spike2: T,
         acc_reject_time: T,
@@ -450,6 +464,7 @@ impl<T: Lane> Coefficients<T> {
             model_error_window: p.coef(|p| p.model_error_window),
             heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
             gyr_scale_error: p.coef(|p| p.gyr_scale_error),
+            acc_excess_scale: p.coef(|p| p.acc_excess_scale),
             acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
             acc_reject_time: p.coef(|p| p.acc_reject_time),
             startup_time: p.coef(|p| p.startup_time.max(1e-6)),
@@ -525,6 +540,7 @@ impl<T: Lane> State<T> {
             rest_gyr_lp: Vec3::zero(),
             rest_acc_lp: Vec3::zero(),
             rest_timer: zero,
+            rest_gravity2: T::from_f64(f64::INFINITY),
             acc_rejected_time: zero,
             inclination_phase: zero,
             inclination_time: zero,

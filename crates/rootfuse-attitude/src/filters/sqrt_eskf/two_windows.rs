@@ -88,6 +88,8 @@ pub(super) struct InclinationMeasurement<T: Lane> {
     pub lag: Mat<T, 3, 3>,
     /// What the reported model error learns from, rad² per axis.
     pub model_error2: T,
+    /// `|ā|²` of the low-passed specific force measured, (m/s²)².
+    pub acc_norm2: T,
 }
 
 impl<T: Lane> SqrtEskf<T> {
@@ -175,6 +177,7 @@ impl<T: Lane> SqrtEskf<T> {
             innovation,
             lag: rc * lag,
             model_error2: short_error2.map_or(error2, |e2| T::select(on, e2, error2)),
+            acc_norm2: acc_lp.norm_squared(),
         }
     }
 

@@ -203,7 +203,11 @@ impl<T: Lane> SqrtEskf<T> {
         // `rest_time` wait.)
         let still = gyr_dev.simd_le(c.rest_gyr2) & !turning & acc_dev.simd_le(c.rest_acc2);
         st.rest_timer = T::select(still, st.rest_timer + s.dt, T::zero());
-        self.at_rest()
+        let rest = self.at_rest();
+        let st = &mut self.state;
+        let g2 = st.rest_acc_lp.norm_squared().min(st.rest_gravity2);
+        st.rest_gravity2 = T::select(rest, g2, st.rest_gravity2);
+        rest
     }
 
     /// Strapdown propagation and the square-root time update (with re-acquisition and
@@ -418,7 +422,16 @@ impl<T: Lane> SqrtEskf<T> {
             self.state.innovation_ms = T::select(learn, m + (e2 - m) * k, m);
             let c = &self.coef;
             let sf = c.gyr_scale_error * self.state.long.rotation * c.tau_acc;
-            self.state.scale_error2 = T::select(learn, sf * sf, self.state.scale_error2);
+            let seen = self.state.rest_gravity2;
+            let g2 = T::select(
+                seen.is_finite(),
+                seen,
+                T::from_f64(STANDARD_GRAVITY * STANDARD_GRAVITY),
+            );
+            let excess = (measured.acc_norm2 / g2 - T::one()).max(zero) * c.acc_excess_scale;
+            // Where the scale is 0, exactly `sf²` (no `0 · ∞` from a wild low-pass).
+            let excess = T::select(c.acc_excess_scale.simd_gt(zero), excess, zero);
+            self.state.scale_error2 = T::select(learn, sf * sf + excess, self.state.scale_error2);
         }
         if adapt.any() {
             // Each innovation against its variance predicted with the nominal noise.
