@@ -4,13 +4,18 @@ use crate::common::broad_dir;
 use rootfuse_attitude::Recording;
 use rootfuse_attitude::units::{DECIDED_SAMPLES, Sensor, UnitCheck, UnitFinding, Units};
 
-fn findings(rec: &Recording, declared: &str) -> Vec<UnitFinding> {
+/// The check of `rec`'s readings as written, declared in `declared`.
+fn checked(rec: &Recording, declared: &str) -> UnitCheck {
     let mut check = UnitCheck::new(&declared.parse::<Units>().unwrap());
     for i in 0..rec.len() {
         let mag = rec.mag.as_ref().map(|m| m[i]);
         check.add(rec.t[i], rec.gyr[i], rec.acc[i], mag);
     }
-    check.findings()
+    check
+}
+
+fn findings(rec: &Recording, declared: &str) -> Vec<UnitFinding> {
+    checked(rec, declared).findings()
 }
 
 /// The recording as written in `units` (the inverse of reading it in them).
@@ -87,11 +92,7 @@ fn a_long_recording_is_decided_early_and_still_named() {
     // 40,000 samples of motion: the check decides after DECIDED_SAMPLES (and enough tilting)
     // and ignores the rest, with the same findings as the short recordings give.
     let rec = rootfuse_eval::sim::scenario("slow-rotation", 4, 400.0, 100.0).unwrap();
-    let mut check = UnitCheck::new(&Units::default());
-    for i in 0..rec.len() {
-        let mag = rec.mag.as_ref().map(|m| m[i]);
-        check.add(rec.t[i], rec.gyr[i], rec.acc[i], mag);
-    }
+    let check = checked(&rec, "");
     assert!(
         check.samples() >= DECIDED_SAMPLES && check.samples() < rec.len() as u64 / 2,
         "decided after {} of {} samples",
@@ -101,11 +102,7 @@ fn a_long_recording_is_decided_early_and_still_named() {
     every_unit_is_named(&rec);
     // At rest the gyroscope test never sees its tilting: the check goes on to the end.
     let rest = rootfuse_eval::sim::scenario("static", 4, 150.0, 100.0).unwrap();
-    let mut check = UnitCheck::new(&Units::default());
-    for i in 0..rest.len() {
-        check.add(rest.t[i], rest.gyr[i], rest.acc[i], None);
-    }
-    assert_eq!(check.samples(), rest.len() as u64);
+    assert_eq!(checked(&rest, "").samples(), rest.len() as u64);
 }
 
 #[test]

@@ -61,15 +61,10 @@ pub fn samples_with_missing_imu(
     // `x·0` is 0 for a finite `x` and NaN otherwise, so a row's sum of them is 0 exactly when
     // every value is finite: one test per row, no branch per value.
     let zero = |v: &Vec3<f64>| v.x * 0.0 + v.y * 0.0 + v.z * 0.0;
-    let n = gyr.len().min(acc.len());
-    match mag {
-        Some(m) => (0..n)
-            .filter(|&r| zero(&gyr[r]) + zero(&acc[r]) + zero(&m[r]) != 0.0)
-            .count(),
-        None => (0..n)
-            .filter(|&r| zero(&gyr[r]) + zero(&acc[r]) != 0.0)
-            .count(),
-    }
+    let mag_zero = |r: usize| mag.map_or(0.0, |m| zero(&m[r]));
+    (0..gyr.len().min(acc.len()))
+        .filter(|&r| zero(&gyr[r]) + zero(&acc[r]) + mag_zero(r) != 0.0)
+        .count()
 }
 
 /// The estimates of a block, row by row (`quat[r]` belongs to row `r` of the block).
