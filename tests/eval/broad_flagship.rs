@@ -195,37 +195,39 @@ fn covariance_matching_helps_the_pendulum_and_leaves_broad_alone() {
     }
 }
 
-/// The reported covariance with the model error (`model_error_scale`, default 2) holds the
+/// The reported covariance with the model error (`model_error_scale`, default 0.6) holds the
 /// 95 % ellipse on the simulated hard cases with motion acceleration, where `P` alone
 /// (`model_error_scale = 0`) is overconfident; the estimates are bit for bit the same.
-/// Measured (3 seeds, 60 s, 9D, inclination coverage / NEES/2): pendulum 1.00 / 0.31,
-/// translation 1.00 / 0.56, handheld-translation 0.98 / 0.54; with 0: 0.59 / 4.3,
-/// 0.47 / 5.2, 0.45 / 8.9 (docs/accuracy.md).
+/// Measured (3 seeds, 60 s, 9D, inclination coverage, this term alone): pendulum 0.95,
+/// translation 0.90, handheld-translation 0.88; with 0: 0.59, 0.47, 0.45 (docs/accuracy.md;
+/// the acceleration-excess term, left out here, takes the three to 0.97 / 0.92 / 0.92).
 #[test]
 fn model_error_makes_the_covariance_honest() {
-    // The inclination innovation's term alone: no scale-factor term beside it.
+    // The inclination innovation's term alone: no scale-factor or acceleration term beside it.
     let params = |scale: f64| SqrtEskfParams {
         model_error_scale: scale,
         gyr_scale_error: 0.0,
+        acc_excess_scale: 0.0,
         ..SqrtEskfParams::default()
     };
+    let default = SqrtEskfParams::default().model_error_scale;
     for (name, min_with, max_without) in [
         ("pendulum", 0.93, 0.6),
-        ("translation", 0.9, 0.6),
-        ("handheld-translation", 0.85, 0.6),
+        ("translation", 0.88, 0.6),
+        ("handheld-translation", 0.86, 0.6),
     ] {
-        let (with, without) = simulated_coverage(name, &params(2.0), &params(0.0));
-        eprintln!("{name}: inclination coverage {with:.2} (model error), {without:.2} (P alone)");
+        let (with, without) = simulated_coverage(name, &params(default), &params(0.0));
+        eprintln!("{name}: inclination coverage {with:.3} (model error), {without:.3} (P alone)");
         assert!(
             with >= min_with && without <= max_without,
-            "{name}: coverage {with:.2} with the model error, {without:.2} without"
+            "{name}: coverage {with:.3} with the model error, {without:.3} without"
         );
     }
 }
 
 /// The 9D heading's model error (`heading_model_error_scale`) on BROAD: the estimates are bit
 /// for bit those of `P` alone, and the mean share of samples inside the 95 % ellipsoid, with
-/// the 0.5° floor for the optical truth's own error, rises from 0.900 to 0.977 (the issue asks
+/// the 0.5° floor for the optical truth's own error, rises from 0.897 to 0.972 (the issue asks
 /// 0.90–0.98; the other parameters the defaults): `P` alone stays short of 0.93. Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
 /// error outside the ellipsoid at every sample with `P` alone and inside with the model error.
 #[test]
@@ -293,12 +295,14 @@ fn heading_model_error_covers_broad_with_the_floor() {
 
 /// The gyroscope scale-factor model error (`gyr_scale_error`) on the simulated fast rotation,
 /// whose IMU has a 0.3 % scale-factor and 0.1 % misalignment error: with its own value
-/// (0.003) the 95 % ellipse holds the inclination error at 0.96 of the samples (3 seeds,
-/// 60 s at 100 Hz, 9D), with 0 at 0.54; the estimates are bit for bit the same.
+/// (0.003) the 95 % ellipse holds the inclination error at 0.95 of the samples (3 seeds,
+/// 60 s at 100 Hz, 9D), with 0 at 0.47; the estimates are bit for bit the same. The
+/// acceleration-excess term is left out here (with it: 0.98 and 0.66).
 #[test]
 fn scale_factor_model_error_covers_fast_rotation() {
     let params = |sf: f64| SqrtEskfParams {
         gyr_scale_error: sf,
+        acc_excess_scale: 0.0,
         ..SqrtEskfParams::default()
     };
     let (with, without) = simulated_coverage("fast-rotation", &params(0.003), &params(0.0));
@@ -309,21 +313,22 @@ fn scale_factor_model_error_covers_fast_rotation() {
     );
 }
 
-/// The sustained-acceleration model error (`acc_excess_scale`, off by default) on the
+/// The sustained-acceleration model error (`acc_excess_scale`, default 0.15) on the
 /// simulated vehicle, whose turns hold a 1–4 m/s² centripetal acceleration for seconds while
-/// the innovation vanishes: at 0.15 the 95 % ellipse holds the inclination error at 0.998 of
-/// the samples (3 seeds, 60 s at 100 Hz, 9D), with 0 at 0.68; the estimates are bit for bit
-/// the same (docs/accuracy.md).
+/// the innovation vanishes: with it the 95 % ellipse holds the inclination error at 0.94 of
+/// the samples (3 seeds, 60 s at 100 Hz, 9D, the other parameters the defaults), with 0 at
+/// 0.35; the estimates are bit for bit the same (docs/accuracy.md).
 #[test]
 fn acceleration_excess_covers_the_vehicle() {
     let params = |k: f64| SqrtEskfParams {
         acc_excess_scale: k,
         ..SqrtEskfParams::default()
     };
-    let (with, without) = simulated_coverage("vehicle", &params(0.15), &params(0.0));
-    eprintln!("vehicle inclination coverage {with:.3} (0.15), {without:.3} (0)");
+    let default = SqrtEskfParams::default().acc_excess_scale;
+    let (with, without) = simulated_coverage("vehicle", &params(default), &params(0.0));
+    eprintln!("vehicle inclination coverage {with:.3} (default), {without:.3} (0)");
     assert!(
-        with >= 0.95 && without < 0.8,
+        with >= 0.92 && without < 0.5,
         "coverage {with:.3} with the acceleration excess, {without:.3} without"
     );
 }
