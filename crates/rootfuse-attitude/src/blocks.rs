@@ -398,11 +398,55 @@ pub fn magnetic_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> (T, T::Mask)
 /// (rad, `[-π, π]`), with the same mask. Rotating `h` about earth-z by `δ` lowers the result
 /// by `δ` (modulo 2π), so a filter that knows `h` in one frame need not rotate it again.
 pub fn field_heading_error<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
+    let (_, ok) = horizontal_field(h);
+    (T::select(ok, h.x.atan2(h.y), T::zero()), ok)
+}
+
+/// `|h_xy|²` of an earth-frame field and whether it gives a heading: finite, and at least
+/// `0.05·|h|` horizontal (the mask of [`field_heading_error`]).
+fn horizontal_field<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
     let hxy2 = h.x * h.x + h.y * h.y;
     let ok = hxy2.simd_gt(T::from_f64(0.0025) * h.norm_squared())
         & hxy2.is_finite()
         & hxy2.simd_gt(T::zero());
-    (T::select(ok, h.x.atan2(h.y), T::zero()), ok)
+    (hxy2, ok)
+}
+
+/// The heading error of an earth-frame field `h` for a feedback loop, in a form whose
+/// normalisation the loop can take off its dependency chain: `h_x` clamped to `±hxy_prev`,
+/// and `±hxy_prev` (the sign of `h_x`) once the error passes 90° (`h_y < 0`), where
+/// `hxy_prev` is `|h_xy|` of an earlier field (0 before the first: no correction). Divided by
+/// `hxy_prev` it is the sine of [`field_heading_error`] clamped to `[-1, 1]` (to the factor
+/// `|h_xy|/hxy_prev`, about 1 from one sample to the next). Returns it, the `|h_xy|` to pass
+/// next time (this field's, or `hxy_prev` where the mask is false) and the mask of
+/// [`field_heading_error`] (the value is 0 where it is false).
+///
+/// A loop that corrects by `sin ψ` gets the angle's gain for small errors without a square
+/// root, a division or an `atan2` between the orientation and its correction: it multiplies
+/// whatever scales the error by `1/hxy_prev`, known before the sample arrives.
+///
+/// ```
+/// use rootfuse_attitude::Vec3;
+/// use rootfuse_attitude::blocks::heading_sine_times_previous;
+/// let h = Vec3::new(0.1_f64, 20.0, -40.0); // the field about 0.29° east of north
+/// let (first, hxy, ok) = heading_sine_times_previous(h, 0.0);
+/// assert!(ok && first == 0.0 && (hxy - h.x.hypot(h.y)).abs() < 1e-12);
+/// let (next, _, _) = heading_sine_times_previous(h, hxy);
+/// assert!((next / hxy - h.x.atan2(h.y)).abs() < 1e-6);
+/// // Past 90° the whole previous |h_xy|, with the error's sign.
+/// let (behind, _, _) = heading_sine_times_previous(Vec3::new(-1.0, -20.0, -40.0), hxy);
+/// assert_eq!(behind, -hxy);
+/// ```
+pub fn heading_sine_times_previous<T: Lane>(h: Vec3<T>, hxy_prev: T) -> (T, T, T::Mask) {
+    let (hxy2, ok) = horizontal_field(h);
+    let sine = h.x.clamp(-hxy_prev, hxy_prev);
+    let beyond = T::select(h.x.simd_lt(T::zero()), -hxy_prev, hxy_prev);
+    let e = T::select(h.y.simd_lt(T::zero()), beyond, sine);
+    (
+        T::select(ok, e, T::zero()),
+        T::select(ok, hxy2.sqrt(), hxy_prev),
+        ok,
+    )
 }
 
 /// [`magnetic_heading_error`] toward **true** north: the rotation about earth-z (rad,

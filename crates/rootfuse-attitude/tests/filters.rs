@@ -128,6 +128,48 @@ fn static_bias_is_estimated() {
     }
 }
 
+/// Mahony's heading correction, the sine of the heading error normalised by the previous
+/// sample's horizontal field: a heading 170° off turns back to north (the full gain past
+/// 90°), and a field that turns from nearly vertical to horizontal in one sample turns the
+/// estimate no further than an error of 90° would (the sine is clamped: its normalisation,
+/// the previous field's horizontal part, was twelve times smaller).
+#[test]
+fn mahony_heading_recovers_from_behind_and_is_bounded() {
+    use rootfuse_attitude::filters::{Mahony, MahonyParams};
+    let p = MahonyParams::default();
+    let heading = |q: Quat<f64>| 2.0 * q.z.atan2(q.w);
+    let sample = |field: Vec3<f64>| ImuSample::new(Vec3::zero(), Vec3::new(0.0, 0.0, G), field);
+    let level = sample(earth_field());
+    let mut f = Mahony::<f64>::new(&p);
+    for _ in 0..10 {
+        f.update(&level, 0.01);
+    }
+    f.set_quat(Quat::from_heading(170f64.to_radians()), None)
+        .unwrap();
+    for _ in 0..6000 {
+        f.update(&level, 0.01);
+    }
+    let left = heading(f.quat()).to_degrees().abs();
+    assert!(left < 0.5, "heading {left:.3}° from north after 60 s");
+
+    let steep = 85f64.to_radians();
+    for _ in 0..10 {
+        f.update(&sample(Vec3::new(0.0, steep.cos(), -steep.sin())), 0.01);
+    }
+    f.set_quat(Quat::from_heading(20f64.to_radians()), None)
+        .unwrap();
+    let before = heading(f.quat());
+    f.update(&sample(Vec3::new(0.0, 1.0, 0.0)), 0.01);
+    let step = (heading(f.quat()) - before).abs();
+    // Unclamped it would be sin 20° / cos 85° = 3.9 times Kp·dt; the bias the recovery
+    // left (below 1e-3 rad/s) is the rest.
+    assert!(
+        step < 1.02 * p.kp * 0.01 && step > 0.98 * p.kp * 0.01,
+        "the flat field turned the heading by {step:e} rad (Kp·dt = {:e})",
+        p.kp * 0.01
+    );
+}
+
 fn finite_unit<T: Lane>(q: Quat<T>, tol: f64) -> bool {
     (0..T::LANES).all(|i| {
         let q = q.lane(i);

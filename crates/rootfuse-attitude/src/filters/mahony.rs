@@ -2,7 +2,7 @@
 
 use super::LaneParams;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
-use crate::blocks::{integrate_gyro, magnetic_heading_error};
+use crate::blocks::{heading_sine_times_previous, integrate_gyro};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -25,18 +25,25 @@ params! {
 
 /// Mahony, Hamel & Pflimlin (2008), "Nonlinear complementary filters on the special
 /// orthogonal group", explicit complementary filter with bias:
-/// `e = â × v̂ + Δψ·v̂`, `ω_c = ω − b̂ + Kp·e`, `ḃ = −Ki·e`, `q̇ = ½·q ⊗ ω_c`, with `v̂` the
-/// predicted up direction in the sensor frame and `Δψ` the tilt-compensated magnetic heading
-/// error (rad).
+/// `e = â × v̂ + sin(Δψ)·v̂`, `ω_c = ω − b̂ + Kp·e`, `ḃ = −Ki·e`, `q̇ = ½·q ⊗ ω_c`, with `v̂`
+/// the predicted up direction in the sensor frame and `Δψ` the tilt-compensated magnetic
+/// heading error (rad).
 ///
 /// The paper's magnetometer term `m̂ × ŵ` has a gain on heading of only `cos²(dip)` (about
 /// 0.19 at 64° dip) and also acts on inclination; the heading error about the up axis has
-/// unit gain and cannot tilt the estimate, so the same `Kp`/`Ki` serve both axes.
+/// unit gain and cannot tilt the estimate, so the same `Kp`/`Ki` serve both axes. Its sine
+/// (`h_x/|h_xy|` of the field in the earth frame, ±1 beyond 90°;
+/// [`heading_sine_times_previous`](crate::blocks::heading_sine_times_previous)) is normalised
+/// by the previous sample's `|h_xy|`, so no square root, division or `atan2` lies between one
+/// sample's orientation and the next: the update's cost is that chain's length.
 #[derive(Clone, Debug)]
 pub struct Mahony<T: Lane> {
     q: Quat<T>,
     bias: Vec3<T>,
     initialized: T::Mask,
+    /// `|h_xy|` of the last field that gave a heading (0 before the first): the heading
+    /// error's normalisation, one sample old.
+    hxy: T,
     /// `2·Kp` and `2·Ki`: the update works with `e/2` (see `update`).
     kp2: T,
     ki2: T,
@@ -62,6 +69,7 @@ impl<T: Lane> Mahony<T> {
             q: Quat::identity(),
             bias: Vec3::zero(),
             initialized: <T::Mask as Mask>::splat(false),
+            hxy: T::zero(),
             kp2: p.coef(|p| 2.0 * p.kp),
             ki2: p.coef(|p| 2.0 * p.ki),
             max_bias: p.coef(|p| p.max_bias),
@@ -88,8 +96,15 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         // 6D is the same for every lane and discards this term: skipping it changes no bits
         // (but the sign of a zero).
         let e_half = if self.nine_d {
-            let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
-            e_acc + Vec3::select(s.mag_ok & heading_ok, v_half * dpsi, Vec3::zero())
+            let (sine_hxy, hxy, heading_ok) =
+                heading_sine_times_previous(q.rotate(s.mag), self.hxy);
+            // 1/|h_xy| of the previous field is known before this sample's orientation: its
+            // division is off the dependency chain, and so is its product with `v̂/2`.
+            let known = self.hxy.simd_gt(T::zero());
+            let v_scaled = v_half * T::select(known, self.hxy.recip(), T::zero());
+            let corrects = s.mag_ok & heading_ok;
+            self.hxy = T::select(corrects & s.step, hxy, self.hxy);
+            e_acc + Vec3::select(corrects, v_scaled * sine_hxy, Vec3::zero())
         } else {
             // Not `e_acc + 0`: IEEE arithmetic cannot fold that addition away (−0 + 0 = +0),
             // and it would lengthen the dependency chain.
@@ -122,7 +137,7 @@ impl<T: Lane> OrientationFilter<T> for Mahony<T> {
         self.q = Quat::select(s.step, q_new, self.q);
         self.bias = Vec3::select(s.step, bias, self.bias);
     }
-    crate::filters::quat_bias_state!();
+    crate::filters::quat_bias_state!(hxy: T::zero());
     fn quat(&self) -> Quat<T> {
         self.q
     }

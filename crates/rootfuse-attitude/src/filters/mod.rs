@@ -72,12 +72,13 @@ pub(crate) use uniform_constructors;
 /// `reset`, `set_quat` and `set_bias` of a filter whose state is `q`, `bias`, `initialized`
 /// and `rejections` alone (no covariance): written once for Mahony and Madgwick.
 macro_rules! quat_bias_state {
-    () => {
+    ($($field:ident: $value:expr),* $(,)?) => {
         fn reset(&mut self) {
             self.q = Quat::identity();
             self.bias = Vec3::zero();
             self.initialized = <T::Mask as Mask>::splat(false);
             self.rejections = Rejections::default();
+            $(self.$field = $value;)*
         }
         fn set_quat(
             &mut self,
