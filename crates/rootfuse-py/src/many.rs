@@ -293,10 +293,13 @@ fn final_states<'py>(
 /// and the filter has one), `flags` `(C, N)` uint8 (if `flags`) and `rejections` (a list of
 /// per-channel count dicts); for list input a list of such dicts per channel. The arrays are
 /// allocated once and written by the engine as it runs; series not asked for are neither
-/// computed nor allocated. With `series=False` only the final state: `{"quat": (C, 4),
+/// computed nor allocated. `dtype="float32"` (or `numpy.float32`) makes the series float32:
+/// half the memory, and writing them is most of a series run's cost beyond the filters
+/// (`docs/performance.md`); with `precision="f32"` their values are the float64 ones exactly,
+/// with `"f64"` rounded. With `series=False` only the final state: `{"quat": (C, 4),
 /// "bias": (C, 3), "rejections": [...]}`.
 #[pyfunction]
-#[pyo3(signature = (name, gyr, acc, mag=None, dt=None, *, t=None, dof=None, precision="f32", channel_params=None, series=true, bias=true, covariance=false, flags=true, **params))]
+#[pyo3(signature = (name, gyr, acc, mag=None, dt=None, *, t=None, dof=None, precision="f32", channel_params=None, series=true, bias=true, covariance=false, flags=true, dtype=None, **params))]
 #[allow(clippy::too_many_arguments)]
 pub fn run_many<'py>(
     py: Python<'py>,
@@ -313,9 +316,11 @@ pub fn run_many<'py>(
     bias: bool,
     covariance: bool,
     flags: bool,
+    dtype: Option<&Bound<'py, PyAny>>,
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let prec = crate::filter::precision(precision)?;
+    let single = series_dtype(py, dtype)?;
     let g = channels(gyr, "gyr")?;
     let a = channels(acc, "acc")?;
     check_lens("acc", &a.lens, &g.lens)?;
@@ -356,58 +361,132 @@ pub fn run_many<'py>(
         covariance: covariance && has_cov,
         flags,
     };
-    // The outputs: one set of arrays for stacked input (each channel a contiguous part of
-    // it), one per channel for lists.
-    let shapes: Vec<Vec<usize>> = if g.stacked {
-        vec![vec![count, g.lens.first().copied().unwrap_or(0)]]
-    } else {
-        g.lens.iter().map(|&n| vec![n]).collect()
+    let run = Series {
+        specs: &specs,
+        sources: &sources,
+        lens: &g.lens,
+        stacked: g.stacked,
+        prec,
+        columns,
     };
-    let outputs: Vec<SeriesArrays<'py>> = shapes
-        .iter()
-        .map(|lead| SeriesArrays::zeros(py, lead, columns))
-        .collect();
-    let mut views: Vec<SeriesViews<'_, 'py>> = outputs
-        .iter()
-        .map(SeriesArrays::views)
-        .collect::<PyResult<_>>()?;
-    let per_array = if g.stacked { count } else { 1 };
-    let mut sinks: Vec<ArraySink<'_>> = Vec::with_capacity(count);
-    for v in &mut views {
-        sinks.extend(v.split(per_array));
-    }
-    py.detach(|| run_grouped(&specs, &sources, &mut sinks, prec, columns));
-    let rejections: Vec<RejectionTotals> = sinks.iter().map(|s| s.rejections).collect();
-    drop(sinks);
-    drop(views);
-    let dicts = outputs
-        .into_iter()
-        .map(|o| o.into_dict(py))
-        .collect::<PyResult<Vec<_>>>()?;
-    if g.stacked {
-        let out = dicts.into_iter().next().unwrap_or_else(|| PyDict::new(py));
-        let rej = PyList::empty(py);
-        for r in &rejections {
-            rej.append(rejections_dict(py, r)?)?;
-        }
-        out.set_item("rejections", rej)?;
-        Ok(out.into_any())
+    if single {
+        run.into_arrays::<f32>(py)
     } else {
-        let list = PyList::empty(py);
-        for (d, r) in dicts.into_iter().zip(&rejections) {
-            d.set_item("rejections", rejections_dict(py, r)?)?;
-            list.append(d)?;
+        run.into_arrays::<f64>(py)
+    }
+}
+
+/// `dtype`: true for float32 series, false for float64 (the default, `None`).
+fn series_dtype(py: Python<'_>, dtype: Option<&Bound<'_, PyAny>>) -> PyResult<bool> {
+    let Some(obj) = dtype.filter(|d| !d.is_none()) else {
+        return Ok(false);
+    };
+    let name: Option<String> = py
+        .import("numpy")
+        .and_then(|np| {
+            np.getattr("dtype")?
+                .call1((obj,))?
+                .getattr("name")?
+                .extract()
+        })
+        .ok();
+    match name.as_deref() {
+        Some("float32") => Ok(true),
+        Some("float64") => Ok(false),
+        _ => Err(PyTypeError::new_err(format!(
+            "dtype: expected \"float32\" or \"float64\" (or the numpy types), got {}",
+            obj.repr()
+                .map_or_else(|_| type_name(obj), |r| r.to_string())
+        ))),
+    }
+}
+
+/// A series run's inputs, written into NumPy arrays of one float type.
+struct Series<'a, 'b> {
+    specs: &'a [FilterSpec],
+    sources: &'a [Inputs<'b>],
+    lens: &'a [usize],
+    stacked: bool,
+    prec: Precision,
+    columns: Columns,
+}
+
+impl Series<'_, '_> {
+    fn into_arrays<'py, E: SeriesFloat>(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (count, columns) = (self.lens.len(), self.columns);
+        // The outputs: one set of arrays for stacked input (each channel a contiguous part of
+        // it), one per channel for lists.
+        let shapes: Vec<Vec<usize>> = if self.stacked {
+            vec![vec![count, self.lens.first().copied().unwrap_or(0)]]
+        } else {
+            self.lens.iter().map(|&n| vec![n]).collect()
+        };
+        let outputs: Vec<SeriesArrays<'py, E>> = shapes
+            .iter()
+            .map(|lead| SeriesArrays::zeros(py, lead, columns))
+            .collect();
+        let mut views: Vec<SeriesViews<'_, 'py, E>> = outputs
+            .iter()
+            .map(SeriesArrays::views)
+            .collect::<PyResult<_>>()?;
+        let per_array = if self.stacked { count } else { 1 };
+        let mut sinks: Vec<ArraySink<'_, E>> = Vec::with_capacity(count);
+        for v in &mut views {
+            sinks.extend(v.split(per_array));
         }
-        Ok(list.into_any())
+        py.detach(|| run_grouped(self.specs, self.sources, &mut sinks, self.prec, columns));
+        let rejections: Vec<RejectionTotals> = sinks.iter().map(|s| s.rejections).collect();
+        drop(sinks);
+        drop(views);
+        let dicts = outputs
+            .into_iter()
+            .map(|o| o.into_dict(py))
+            .collect::<PyResult<Vec<_>>>()?;
+        if self.stacked {
+            let out = dicts.into_iter().next().unwrap_or_else(|| PyDict::new(py));
+            let rej = PyList::empty(py);
+            for r in &rejections {
+                rej.append(rejections_dict(py, r)?)?;
+            }
+            out.set_item("rejections", rej)?;
+            Ok(out.into_any())
+        } else {
+            let list = PyList::empty(py);
+            for (d, r) in dicts.into_iter().zip(&rejections) {
+                d.set_item("rejections", rejections_dict(py, r)?)?;
+                list.append(d)?;
+            }
+            Ok(list.into_any())
+        }
+    }
+}
+
+/// The float types series are written in: the engine's f64 estimates converted on the way
+/// in (exactly, for `f32` lanes' values into `f32`).
+trait SeriesFloat: numpy::Element + Copy + Default {
+    fn of(x: f64) -> Self;
+}
+
+impl SeriesFloat for f64 {
+    #[inline]
+    fn of(x: f64) -> Self {
+        x
+    }
+}
+
+impl SeriesFloat for f32 {
+    #[inline]
+    fn of(x: f64) -> Self {
+        x as f32
     }
 }
 
 /// Channels grouped by equal spec, each group through the batch engine, every channel's
 /// estimates into its own sink (a channel's result does not depend on its chunk mates).
-fn run_grouped(
+fn run_grouped<E: SeriesFloat>(
     specs: &[FilterSpec],
     sources: &[Inputs<'_>],
-    sinks: &mut [ArraySink<'_>],
+    sinks: &mut [ArraySink<'_, E>],
     prec: Precision,
     columns: Columns,
 ) {
@@ -424,7 +503,7 @@ fn run_grouped(
     }
     for (spec, members) in groups {
         let srcs: Vec<&Inputs<'_>> = members.iter().map(|&c| &sources[c]).collect();
-        let mut group: Vec<ArraySink<'_>> = members
+        let mut group: Vec<ArraySink<'_, E>> = members
             .iter()
             .map(|&c| std::mem::take(&mut sinks[c]))
             .collect();
@@ -437,14 +516,14 @@ fn run_grouped(
 
 /// The series arrays of one output dict, allocated once with `zeros` (numpy maps zeroed
 /// pages lazily, so the engine's write is the only touch), shapes `lead + [4]` etc.
-struct SeriesArrays<'py> {
-    quat: Bound<'py, PyArrayDyn<f64>>,
-    bias: Option<Bound<'py, PyArrayDyn<f64>>>,
-    covariance: Option<Bound<'py, PyArrayDyn<f64>>>,
+struct SeriesArrays<'py, E: SeriesFloat> {
+    quat: Bound<'py, PyArrayDyn<E>>,
+    bias: Option<Bound<'py, PyArrayDyn<E>>>,
+    covariance: Option<Bound<'py, PyArrayDyn<E>>>,
     flags: Option<Bound<'py, PyArrayDyn<u8>>>,
 }
 
-impl<'py> SeriesArrays<'py> {
+impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
     fn zeros(py: Python<'py>, lead: &[usize], columns: Columns) -> Self {
         let shape = |tail: &[usize]| -> Vec<usize> { lead.iter().chain(tail).copied().collect() };
         Self {
@@ -461,7 +540,7 @@ impl<'py> SeriesArrays<'py> {
         }
     }
 
-    fn views(&self) -> PyResult<SeriesViews<'_, 'py>> {
+    fn views(&self) -> PyResult<SeriesViews<'_, 'py, E>> {
         // Arrays made here and not yet handed to Python: nothing else can borrow them.
         let busy = |e: numpy::BorrowError| pyo3::exceptions::PyRuntimeError::new_err(e.to_string());
         Ok(SeriesViews {
@@ -505,17 +584,17 @@ impl<'py> SeriesArrays<'py> {
 }
 
 /// Write access to one [`SeriesArrays`] while the engine runs.
-struct SeriesViews<'s, 'py> {
-    quat: numpy::PyReadwriteArrayDyn<'py, f64>,
-    bias: Option<numpy::PyReadwriteArrayDyn<'py, f64>>,
-    covariance: Option<numpy::PyReadwriteArrayDyn<'py, f64>>,
+struct SeriesViews<'s, 'py, E: SeriesFloat> {
+    quat: numpy::PyReadwriteArrayDyn<'py, E>,
+    bias: Option<numpy::PyReadwriteArrayDyn<'py, E>>,
+    covariance: Option<numpy::PyReadwriteArrayDyn<'py, E>>,
     flags: Option<numpy::PyReadwriteArrayDyn<'py, u8>>,
-    _arrays: core::marker::PhantomData<&'s SeriesArrays<'py>>,
+    _arrays: core::marker::PhantomData<&'s SeriesArrays<'py, E>>,
 }
 
-impl SeriesViews<'_, '_> {
+impl<E: SeriesFloat> SeriesViews<'_, '_, E> {
     /// One sink per channel over `channels` equal contiguous parts of the arrays.
-    fn split(&mut self, channels: usize) -> Vec<ArraySink<'_>> {
+    fn split(&mut self, channels: usize) -> Vec<ArraySink<'_, E>> {
         fn parts<'a, T: numpy::Element>(
             a: Option<&'a mut numpy::PyReadwriteArrayDyn<'_, T>>,
             channels: usize,
@@ -553,25 +632,39 @@ impl SeriesViews<'_, '_> {
 
 /// One channel's part of the output arrays: sample `k` goes to rows `k` (an empty slice is
 /// a series not collected).
-#[derive(Default)]
-struct ArraySink<'a> {
-    quat: &'a mut [f64],
-    bias: &'a mut [f64],
-    covariance: &'a mut [f64],
+struct ArraySink<'a, E> {
+    quat: &'a mut [E],
+    bias: &'a mut [E],
+    covariance: &'a mut [E],
     flags: &'a mut [u8],
     rejections: RejectionTotals,
 }
 
-impl EstimateSink for ArraySink<'_> {
+// Not derived: a derived `Default` would ask `E: Default` of the slices' element.
+impl<E> Default for ArraySink<'_, E> {
+    fn default() -> Self {
+        Self {
+            quat: &mut [],
+            bias: &mut [],
+            covariance: &mut [],
+            flags: &mut [],
+            rejections: RejectionTotals::default(),
+        }
+    }
+}
+
+impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
     #[inline]
     fn push(&mut self, k: usize, e: &Estimate) {
+        let of = E::of;
         if let Some(q) = self.quat.get_mut(4 * k..4 * k + 4) {
-            q.copy_from_slice(&[e.quat.w, e.quat.x, e.quat.y, e.quat.z]);
+            q.copy_from_slice(&[of(e.quat.w), of(e.quat.x), of(e.quat.y), of(e.quat.z)]);
         }
         if let (Some(b), Some(out)) = (e.bias, self.bias.get_mut(3 * k..3 * k + 3)) {
-            out.copy_from_slice(&[b.x, b.y, b.z]);
+            out.copy_from_slice(&[of(b.x), of(b.y), of(b.z)]);
         }
         if let (Some(u), Some(out)) = (e.covariance, self.covariance.get_mut(9 * k..9 * k + 9)) {
+            let u = u.map(of);
             out.copy_from_slice(&[u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]]);
         }
         if let (Some(f), Some(out)) = (e.flags, self.flags.get_mut(k)) {

@@ -30,6 +30,34 @@ def test_run_many_stacked_equals_single_channels(precision):
     assert out["rejections"][3]["gyr"] == 1
 
 
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_run_many_float32_series(precision):
+    """dtype float32: the float64 series rounded to float32 (with f32 lanes exactly them),
+    for stacked and list input; flags and counts as they are; a dtype that is not a float
+    type is refused by name."""
+    recs = sims(11)
+    gyr = np.stack([r["gyr"] for r in recs]); acc = np.stack([r["acc"] for r in recs])
+    mag = np.stack([r["mag"] for r in recs])
+    gyr[3, 7] = np.nan
+    wide = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, precision=precision, covariance=True)
+    for dtype in ("float32", np.float32):
+        narrow = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, precision=precision, covariance=True,
+                             dtype=dtype)
+        for key in ("quat", "bias", "covariance"):
+            assert narrow[key].dtype == np.float32 and narrow[key].shape == wide[key].shape
+            np.testing.assert_array_equal(narrow[key], wide[key].astype(np.float32))
+            if precision == "f32":
+                np.testing.assert_array_equal(narrow[key].astype(np.float64), wide[key])
+        np.testing.assert_array_equal(narrow["flags"], wide["flags"])
+        assert narrow["rejections"] == wide["rejections"]
+    listed = rf.run_many("mahony", list(gyr[:3]), list(acc[:3]), None, 0.01, dtype="float32")
+    assert [c["quat"].dtype for c in listed] == [np.float32] * 3
+    same = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, precision=precision, dtype=np.float64)
+    np.testing.assert_array_equal(same["quat"], wide["quat"])
+    with pytest.raises(TypeError, match=r"dtype: expected \"float32\" or \"float64\".*int16"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, dtype="int16")
+
+
 def test_run_many_lists_of_different_lengths_and_channel_params():
     recs = [rf.simulate("fast-rotation", seed=s, duration_s=0.5 + 0.25 * s) for s in range(5)]
     params = [{"kp": 0.5 + 0.1 * c} for c in range(5)]
