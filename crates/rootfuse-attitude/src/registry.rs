@@ -196,6 +196,9 @@ macro_rules! registry {
             fn rest_detected(&self) -> Option<T::Mask> {
                 match self { $(Self::$variant(f) => f.rest_detected(),)* }
             }
+            fn smoothing_gyro_tau(&self) -> f64 {
+                match self { $(Self::$variant(f) => f.smoothing_gyro_tau(),)* }
+            }
             #[inline]
             fn magnetic_disturbance(&self) -> Option<T::Mask> {
                 match self { $(Self::$variant(f) => f.magnetic_disturbance(),)* }

@@ -152,6 +152,14 @@ pub trait OrientationFilter<T: Lane> {
     fn rest_detected(&self) -> Option<T::Mask> {
         None
     }
+    /// Time constant, s, with which the offline smoother
+    /// ([`forward_backward`](crate::smooth::forward_backward)) refines its fused estimate by
+    /// the gyroscope, bias removed: above `1/(2π·τ)` the result follows the integrated rate,
+    /// below it the fused estimate (zero-phase). 0, the default, keeps the fused estimate.
+    /// The first lane's value.
+    fn smoothing_gyro_tau(&self) -> f64 {
+        0.0
+    }
     /// Per lane: the last magnetometer sample was rejected as a disturbed field, for filters
     /// with magnetic-disturbance detection (`None` otherwise).
     fn magnetic_disturbance(&self) -> Option<T::Mask> {

@@ -81,23 +81,18 @@ params! {
         /// χ² gate of each scalar inclination innovation, in standard deviations.
         acc_gate: f64 = 6.0, "1", [0.0, 1e6];
         /// Time constant of the running mean of the normalised squared inclination
-        /// innovation (innovation² over its predicted variance with `acc_noise`), whose excess
-        /// over 1 scales the inclination measurement variance (covariance matching, capped at
-        /// 1000×): motion accelerations the low-pass leaves in are then weighted as the noise
-        /// they are. 0 disables. On the 14 shared BROAD trials the innovations never exceed
-        /// their prediction and every estimate is bit for bit that of 0; on the simulated
-        /// pendulum (6D, 5 seeds, one window) the inclination falls from 1.17° to 0.89°
-        /// (`docs/accuracy.md`).
+        /// innovation (over its predicted variance), whose excess over 1 scales the
+        /// inclination measurement variance (covariance matching, capped at 1000×). 0
+        /// disables. BROAD's 14 trials: bit for bit as 0; the simulated pendulum (6D, 5 seeds,
+        /// one window): inclination 1.17° → 0.89° (`docs/accuracy.md`).
         acc_adapt_window: f64 = 0.3, "s", [0.0, 1e6];
         /// The reported attitude covariance adds, on both inclination axes, this multiple of
         /// the running mean square of the inclination innovation (rad²): the error the motion
         /// acceleration leaves in the low-passed gravity, which `P` does not model (its
         /// noise is white, the error is not). Only the report changes (and with it the
         /// smoother's weights); the forward estimates are bit for bit those of 0, which
-        /// reports `P` alone. 0.6 with `acc_excess_scale` 0.15 holds the 95 % coverage
-        /// within 0.93–0.99 on every simulated hard case (pendulum, vehicle, handheld
-        /// translation; 2 gives the pendulum and the handheld about 1.00) and at 0.96–0.97
-        /// on BROAD with a 0.5° floor (`docs/accuracy.md`).
+        /// reports `P` alone. 0.6 with `acc_excess_scale` 0.15: 95 % coverage 0.92–0.99 on
+        /// the simulated hard cases, 0.96–0.97 on BROAD with a 0.5° floor (`docs/accuracy.md`).
         model_error_scale: f64 = 0.6, "1", [0.0, 1e3];
         /// Time constant of that running mean square, s.
         model_error_window: f64 = 1.0, "s", [0.0, 1e6];
@@ -136,6 +131,10 @@ params! {
         /// motion acceleration at no cost in lag (cross-validated on BROAD, docs/accuracy.md).
         /// The filter itself does not read it.
         smoothing_tau_scale: f64 = 1.25, "1", [1.0, 10.0];
+        /// Offline only: the smoother's fused estimate refined by the gyroscope with this time
+        /// constant ([`OrientationFilter::smoothing_gyro_tau`](crate::OrientationFilter);
+        /// 0 keeps it), so motion acceleration the passes let through above `1/(2π·τ)` goes.
+        smoothing_gyro_tau: f64 = 1.2, "s", [0.0, 1e3];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted

@@ -526,6 +526,9 @@ fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
 }
 
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
+    fn smoothing_gyro_tau(&self) -> f64 {
+        self.params.smoothing_gyro_tau
+    }
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let mut s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         // A spike is an unusable accelerometer sample from here on: every low-pass, detector
