@@ -15,13 +15,14 @@
 //! `smoothing_gyro_tau`), the fused estimate is then refined by the gyroscope: a
 //! complementary filter runs forward with the fused estimate as its measurement and another
 //! backward with the first's output as its own, each integrating the rate (minus the forward
-//! pass's bias) and turning by the fraction `1 − exp(−dt/τ)` toward its measurement. The
+//! pass's bias) and turning by the fraction `1 − exp(−dt/τ)` toward its measurement (the
+//! forward one starting from the backward filter's estimate at the first sample). The
 //! correction to the integrated rate is thereby low-passed twice in opposite directions,
 //! zero-phase: above `1/(2π·τ)` the result follows the gyroscope. Averaging the two passes
 //! cancels their low-passes' lag but not the motion acceleration each lets through (the real
 //! part of a second-order low-pass falls only as fast as the low-pass itself); this removes
 //! it (simulated, 5 seeds × 120 s: the pendulum's smoothed inclination 0.695° → 0.662°,
-//! level with VQF offline, the handheld translation's 0.611° → 0.565°; `docs/accuracy.md`).
+//! level with VQF offline, the handheld translation's 0.611° → 0.564°; `docs/accuracy.md`).
 //!
 //! The estimates must share their earth frame: a 9D filter (magnetic north) does; a 6D
 //! filter's heading is arbitrary per run, so for 6D the backward estimate is first turned
@@ -48,7 +49,7 @@
 //! assert_eq!(out.forward_only, 0);
 //! ```
 
-use crate::blocks::{integrate_gyro, lowpass_gain, turn_in_earth};
+use crate::blocks::{LowPassGain, integrate_gyro, turn_in_earth};
 use crate::filters::Rejections;
 use crate::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mask;
@@ -200,7 +201,15 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     }
     let tau = filter.smoothing_gyro_tau();
     if tau > 0.0 {
-        refine_by_gyro(rec, &mut quat, &bias, tau);
+        // The backward pass has seen every sample when it reaches the first: a settled start.
+        let start = backward
+            .first()
+            .map(|b| b.0)
+            .filter(|q| q.is_finite())
+            .or(quat.first().copied());
+        if let Some(start) = start {
+            refine_by_gyro(rec, &mut quat, &bias, start, tau);
+        }
     }
     Ok(Smoothed {
         quat,
@@ -213,45 +222,41 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
 /// the module documentation): a forward pass toward `quat`, then a backward pass toward the
 /// forward one's output. Each pass starts where the data have settled it, not at a first
 /// sample that may be an outlier (a filter that could not initialise on unusable first
-/// samples): the forward pass starts at the sample-0 state of a backward pass over `quat`, the
+/// samples): the forward pass at `start` (the backward filter's estimate at sample 0), the
 /// backward pass at the forward pass's last state.
-fn refine_by_gyro(rec: &Recording, quat: &mut [Quat<f64>], bias: &[Vec3<f64>], tau: f64) {
+fn refine_by_gyro(
+    rec: &Recording,
+    quat: &mut [Quat<f64>],
+    bias: &[Vec3<f64>],
+    start: Quat<f64>,
+    tau: f64,
+) {
     let n = quat.len().min(bias.len()).min(rec.gyr.len());
     if n < 2 {
         return;
     }
     let quat = &mut quat[..n];
-    let pass = |to: &[Quat<f64>], start: Quat<f64>, forward: bool| {
-        let mut out = to.to_vec();
-        let order: Vec<usize> = if forward {
-            (1..n).collect()
-        } else {
-            (0..n - 1).rev().collect()
-        };
-        let first = if forward { 0 } else { n - 1 };
-        out[first] = start;
-        for k in order {
-            // Forward, sample k's rate covers [t_{k-1}, t_k]; backward, sample k + 1's,
-            // negated, covers [t_k, t_{k+1}].
-            let (from, covering, sign) = if forward {
-                (k - 1, k, 1.0)
-            } else {
-                (k + 1, k + 1, -1.0)
-            };
-            out[k] = gyro_step(rec, bias, covering, sign, out[from], to[k], tau);
-        }
-        out
-    };
-    let settled = pass(quat, quat[n - 1], false);
-    let forward = pass(quat, settled[0], true);
-    let smoothed = pass(&forward, forward[n - 1], false);
-    quat.copy_from_slice(&smoothed);
+    let mut gain = LowPassGain::new(tau);
+    let mut forward = Vec::with_capacity(n);
+    forward.push(start);
+    for k in 1..n {
+        // Sample k's rate covers [t_{k-1}, t_k].
+        let next = gyro_step(rec, bias, k, 1.0, forward[k - 1], quat[k], &mut gain);
+        forward.push(next);
+    }
+    quat[n - 1] = forward[n - 1];
+    for k in (0..n - 1).rev() {
+        // Backward, sample k + 1's rate, negated, covers [t_k, t_{k+1}].
+        quat[k] = gyro_step(rec, bias, k + 1, -1.0, quat[k + 1], forward[k], &mut gain);
+    }
 }
 
 /// One step of [`refine_by_gyro`]'s passes: `from` turned by sample `k`'s rate (minus its
 /// bias, times `sign`) over its `dt`, then the fraction `1 − exp(−dt/tau)` of the earth-frame
-/// rotation toward `to`. A rate or step that is not usable (not finite, `dt ≤ 0`) neither
-/// turns nor corrects: the estimate is held.
+/// rotation toward `to`, taken as twice the vector part of `to ⊗ moved*` (the rotation vector
+/// to within `θ²/24` of the angle `θ`, and the step is a small fraction of it). A rate or
+/// step that is not usable (not finite, `dt ≤ 0`) neither turns nor corrects: the estimate
+/// is held.
 fn gyro_step(
     rec: &Recording,
     bias: &[Vec3<f64>],
@@ -259,16 +264,17 @@ fn gyro_step(
     sign: f64,
     from: Quat<f64>,
     to: Quat<f64>,
-    tau: f64,
+    gain: &mut LowPassGain<f64>,
 ) -> Quat<f64> {
     let (w, dt) = (rec.gyr[k] - bias[k], rec.dt(k));
     if !(w.is_finite() && dt.is_finite() && dt > 0.0) {
         return from;
     }
     let moved = integrate_gyro(from, w * sign, dt);
-    let phi = (to * moved.conj()).to_rotation_vector();
+    let d = to * moved.conj();
+    let phi = d.vector() * (2.0_f64.copysign(d.w));
     if phi.is_finite() {
-        turn_in_earth(moved, phi * lowpass_gain(dt, tau))
+        turn_in_earth(moved, phi * gain.gain(dt))
     } else {
         moved
     }

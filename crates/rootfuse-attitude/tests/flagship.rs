@@ -336,8 +336,8 @@ fn second_window_serves_translation_and_leaves_rotation_alone() {
 
 /// The smoother's gyroscope refinement (`smoothing_gyro_tau`) takes out motion acceleration
 /// the two passes let through: the smoothed inclination on the simulated pendulum and
-/// handheld translation falls (3 seeds, 60 s, 6D, the smoother's parameters: 0.692° → 0.673°,
-/// 0.577° → 0.509°), and on slow
+/// handheld translation falls (3 seeds, 60 s, 6D, the smoother's parameters: 0.692° → 0.672°,
+/// 0.577° → 0.504°), and on slow
 /// rotation, with nothing to take out, it stays within 2 %.
 #[test]
 fn gyro_refinement_lowers_the_smoothed_inclination() {
