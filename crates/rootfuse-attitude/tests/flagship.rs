@@ -20,6 +20,31 @@ fn run<T: Lane>(rec: &Recording, dof: f64) -> (Vec<Quat<f64>>, SqrtEskf<T>) {
     (rec.estimate(&mut f), f)
 }
 
+/// The mean of `inclination(recording, p)` over seeds 0–2 of 60 s of the scenario `name` at
+/// 100 Hz, for `a` and for `b`: one parameter against another on the same motion.
+fn mean_inclinations(
+    name: &str,
+    a: &SqrtEskfParams,
+    b: &SqrtEskfParams,
+    inclination: impl Fn(&Recording, &SqrtEskfParams) -> f64,
+) -> (f64, f64) {
+    (0..3).fold((0.0, 0.0), |(sa, sb), seed| {
+        let rec = scenario(name, seed, 60.0, 100.0).unwrap();
+        (
+            sa + inclination(&rec, a) / 3.0,
+            sb + inclination(&rec, b) / 3.0,
+        )
+    })
+}
+
+/// Smoothed 6D inclination of `rec` with the passes built from `p` as given.
+fn smoothed_inclination(rec: &Recording, p: &SqrtEskfParams) -> f64 {
+    let out = rootfuse_attitude::smooth::forward_backward(rec, || SqrtEskf::new(p), false).unwrap();
+    evaluate(rec, &out.quat, Alignment::SixD)
+        .unwrap()
+        .inclination
+}
+
 fn rmse64(rec: &Recording, dof: f64) -> (f64, f64) {
     let (est, _) = run::<f64>(rec, dof);
     let align = if dof > 7.5 {
@@ -265,30 +290,23 @@ fn smoother_beats_the_forward_filter() {
 /// 7.60° → 7.18°.
 #[test]
 fn smoothing_time_constant_lowers_the_inclination_error() {
-    use rootfuse_attitude::smooth::forward_backward;
+    // The two-filter fusion alone (no gyroscope refinement after it), the passes' other
+    // settings (`for_smoothing`) in both: only the time constants differ.
+    let p = SqrtEskfParams {
+        smoothing_gyro_tau: 0.0,
+        ..params(6.0)
+    };
+    let same_tau = SqrtEskfParams {
+        smoothing_tau_scale: 1.0,
+        ..p.clone()
+    };
     for name in ["pendulum-6d", "handheld-translation-6d", "vehicle-6d"] {
-        let (mut online, mut offline) = (0.0, 0.0);
-        for seed in 0..3 {
-            let rec = scenario(name, seed, 60.0, 100.0).unwrap();
-            let incl = |p: &SqrtEskfParams| {
-                let out = forward_backward(&rec, || SqrtEskf::new(p), false).unwrap();
-                evaluate(&rec, &out.quat, Alignment::SixD)
-                    .unwrap()
-                    .inclination
-            };
-            // The two-filter fusion alone (no gyroscope refinement after it), the passes'
-            // other settings (`for_smoothing`) in both: only the time constants differ.
-            let p = SqrtEskfParams {
-                smoothing_gyro_tau: 0.0,
-                ..params(6.0)
-            };
-            let same_tau = SqrtEskfParams {
-                smoothing_tau_scale: 1.0,
-                ..p.clone()
-            };
-            online += incl(&same_tau.for_smoothing()) / 3.0;
-            offline += incl(&p.for_smoothing()) / 3.0;
-        }
+        let (online, offline) = mean_inclinations(
+            name,
+            &same_tau.for_smoothing(),
+            &p.for_smoothing(),
+            smoothed_inclination,
+        );
         eprintln!("{name}: smoothed inclination {online:.3}° (online tau_acc), {offline:.3}°");
         assert!(
             offline < 0.985 * online,
@@ -312,20 +330,14 @@ fn second_window_serves_translation_and_leaves_rotation_alone() {
         ("fast-rotation", 1.01),
         ("slow-rotation", 1.01),
     ] {
-        let (mut one, mut two) = (0.0, 0.0);
-        for seed in 0..3 {
-            let rec = scenario(name, seed, 60.0, 100.0).unwrap();
-            let incl = |tau_acc_long: f64| {
-                let p = SqrtEskfParams {
-                    tau_acc_long,
-                    ..params(6.0)
-                };
-                let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
-                evaluate(&rec, &est, Alignment::SixD).unwrap().inclination
-            };
-            one += incl(0.0) / 3.0;
-            two += incl(SqrtEskfParams::default().tau_acc_long) / 3.0;
-        }
+        let one_window = SqrtEskfParams {
+            tau_acc_long: 0.0,
+            ..params(6.0)
+        };
+        let (one, two) = mean_inclinations(name, &one_window, &params(6.0), |rec, p| {
+            let est = rec.estimate(&mut SqrtEskf::<f64>::new(p));
+            evaluate(rec, &est, Alignment::SixD).unwrap().inclination
+        });
         eprintln!("{name}: inclination {one:.3}° with one window, {two:.3}° with two");
         assert!(
             two < most * one,
@@ -341,29 +353,21 @@ fn second_window_serves_translation_and_leaves_rotation_alone() {
 /// rotation, with nothing to take out, it stays within 2 %.
 #[test]
 fn gyro_refinement_lowers_the_smoothed_inclination() {
-    use rootfuse_attitude::smooth::forward_backward;
+    let unrefined = SqrtEskfParams {
+        smoothing_gyro_tau: 0.0,
+        ..params(6.0)
+    };
     for (name, most) in [
         ("pendulum-6d", 0.98),
         ("handheld-translation-6d", 0.92),
         ("slow-rotation", 1.02),
     ] {
-        let (mut plain, mut refined) = (0.0, 0.0);
-        for seed in 0..3 {
-            let rec = scenario(name, seed, 60.0, 100.0).unwrap();
-            let incl = |tau: f64| {
-                let p = SqrtEskfParams {
-                    smoothing_gyro_tau: tau,
-                    ..params(6.0)
-                }
-                .for_smoothing();
-                let out = forward_backward(&rec, || SqrtEskf::new(&p), false).unwrap();
-                evaluate(&rec, &out.quat, Alignment::SixD)
-                    .unwrap()
-                    .inclination
-            };
-            plain += incl(0.0) / 3.0;
-            refined += incl(SqrtEskfParams::default().smoothing_gyro_tau) / 3.0;
-        }
+        let (plain, refined) = mean_inclinations(
+            name,
+            &unrefined.for_smoothing(),
+            &params(6.0).for_smoothing(),
+            smoothed_inclination,
+        );
         eprintln!("{name}: smoothed inclination {plain:.3}° → {refined:.3}° refined");
         assert!(
             refined < most * plain,

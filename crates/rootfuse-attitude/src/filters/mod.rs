@@ -153,7 +153,7 @@ pub trait OrientationFilter<T: Lane> {
         None
     }
     /// Time constant, s, with which the offline smoother
-    /// ([`forward_backward`](crate::smooth::forward_backward)) refines its fused estimate by
+    /// (`smooth::forward_backward`, with `std`) refines its fused estimate by
     /// the gyroscope, bias removed: above `1/(2π·τ)` the result follows the integrated rate,
     /// below it the fused estimate (zero-phase). 0, the default, keeps the fused estimate.
     /// The first lane's value.
