@@ -463,7 +463,7 @@ impl Series<'_, '_> {
 
 /// The float types series are written in: the engine's f64 estimates converted on the way
 /// in (exactly, for `f32` lanes' values into `f32`).
-trait SeriesFloat: numpy::Element + Copy + Default {
+trait SeriesFloat: numpy::Element + Copy {
     fn of(x: f64) -> Self;
 }
 
