@@ -67,20 +67,25 @@ pub fn turn_in_earth<T: Lane>(q: Quat<T>, phi: Vec3<T>) -> Quat<T> {
     times_exp(q, phi * T::from_f64(0.5), true)
 }
 
+/// [`turn_in_earth`] by `2·half_phi`, for a caller that folds the half into its gains: one
+/// multiply fewer where `half_phi` is on a dependency chain.
+#[inline]
+pub(crate) fn turn_in_earth_by_half<T: Lane>(q: Quat<T>, half_phi: Vec3<T>) -> Quat<T> {
+    times_exp(q, half_phi, true)
+}
+
+/// [`earth_turn`] of `2·half_phi` (see [`turn_in_earth_by_half`]).
+#[inline]
+pub(crate) fn earth_turn_by_half<T: Lane>(half_phi: Vec3<T>) -> Quat<T> {
+    series_exp(half_phi)
+}
+
 /// `q ⊗ exp(v)` (`earth` false) or `exp(v) ⊗ q` (`earth` true) for a pure `v`, as
 /// `q·cos a + (q ⊗ [0, v])·(sin a / a)` (or `[0, v] ⊗ q`), `q` renormalised by its own norm
 /// first (see [`integrate_gyro`]).
 #[inline(always)]
 fn times_exp<T: Lane>(q: Quat<T>, v: Vec3<T>, earth: bool) -> Quat<T> {
-    let a2 = v.norm_squared();
-    let small = a2.simd_lt(T::from_f64(GYRO_SERIES_A2));
-    let (cos, sinc) = if small.all() {
-        gyro_series(a2)
-    } else {
-        let (cos, sinc) = gyro_series(a2);
-        let (c, s) = Quat::exp_cos_sinc(a2);
-        (T::select(small, cos, c), T::select(small, sinc, s))
-    };
+    let (cos, sinc) = exp_cos_sinc(v.norm_squared());
     let unit = q.scale(T::from_f64(1.5) - T::from_f64(0.5) * q.norm_squared());
     let turned = if earth {
         unit.pure_times(v)
@@ -93,6 +98,66 @@ fn times_exp<T: Lane>(q: Quat<T>, v: Vec3<T>, earth: bool) -> Quat<T> {
         turned.y.mul_add(sinc, unit.y * cos),
         turned.z.mul_add(sinc, unit.z * cos),
     )
+}
+
+/// `exp(ω·dt/2)`: the rotation [`integrate_gyro`] multiplies by, from the same series by the
+/// same rule (`integrate_gyro(q, ω, dt)` is `q ⊗ gyro_increment(ω, dt)` to rounding). `omega`
+/// in rad/s (sensor frame), `dt` in s.
+///
+/// A filter that measures a vector `v` in the earth frame of the propagated orientation can
+/// turn it by the increment first, `R(q ⊗ e)·v = R(q)·(R(e)·v)`: `R(e)·v` depends on the
+/// sample only, so one rotation by `q` is left where a propagation and a rotation were.
+///
+/// ```
+/// use rootfuse_attitude::{Quat, Vec3, blocks::{gyro_increment, integrate_gyro}};
+/// let q = Quat::<f64>::from_euler_zyx(0.3, 0.1, -0.2);
+/// let (omega, v) = (Vec3::new(0.5, -1.0, 2.0), Vec3::new(0.0, 0.6, 0.8));
+/// let e = gyro_increment(omega, 0.01);
+/// let a = integrate_gyro(q, omega, 0.01).rotate(v);
+/// let b = q.rotate(e.rotate(v));
+/// assert!((a - b).norm() < 1e-15);
+/// ```
+#[inline]
+pub fn gyro_increment<T: Lane>(omega: Vec3<T>, dt: T) -> Quat<T> {
+    series_exp(omega * (dt * T::from_f64(0.5)))
+}
+
+/// `exp(φ/2)`: the rotation [`turn_in_earth`] applies, by the same rule
+/// (`turn_in_earth(q, phi)` is `earth_turn(phi) ⊗ q` to rounding). `phi` the earth-frame
+/// rotation vector (axis·angle, rad).
+///
+/// ```
+/// use rootfuse_attitude::{Quat, Vec3, blocks::earth_turn};
+/// let phi = Vec3::<f64>::new(0.01, -0.02, 0.005);
+/// let exact = Quat::from_rotation_vector(phi);
+/// let t = earth_turn(phi);
+/// assert!((t.w - exact.w).abs() < 1e-16 && (t.y - exact.y).abs() < 1e-16);
+/// ```
+#[inline]
+pub fn earth_turn<T: Lane>(phi: Vec3<T>) -> Quat<T> {
+    series_exp(phi * T::from_f64(0.5))
+}
+
+/// `exp([0, v])` by the rule of [`times_exp`].
+#[inline(always)]
+fn series_exp<T: Lane>(v: Vec3<T>) -> Quat<T> {
+    let (cos, sinc) = exp_cos_sinc(v.norm_squared());
+    Quat::from_parts(cos, v * sinc)
+}
+
+/// `cos a` and `sin a / a` of `a = √a2` by the rule of [`integrate_gyro`]: the series below
+/// [`GYRO_SERIES_A2`] (only the series where every lane is below it), [`Quat::exp`]'s
+/// coefficients elsewhere, each lane selecting by its own `a2`.
+#[inline(always)]
+fn exp_cos_sinc<T: Lane>(a2: T) -> (T, T) {
+    let small = a2.simd_lt(T::from_f64(GYRO_SERIES_A2));
+    if small.all() {
+        gyro_series(a2)
+    } else {
+        let (cos, sinc) = gyro_series(a2);
+        let (c, s) = Quat::exp_cos_sinc(a2);
+        (T::select(small, cos, c), T::select(small, sinc, s))
+    }
 }
 
 /// `cos a` and `sin a / a` from their Taylor series in `a² < `[`GYRO_SERIES_A2`]: through
@@ -400,6 +465,12 @@ pub fn magnetic_heading_error<T: Lane>(q: Quat<T>, mag: Vec3<T>) -> (T, T::Mask)
 pub fn field_heading_error<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
     let (_, ok) = horizontal_field(h);
     (T::select(ok, h.x.atan2(h.y), T::zero()), ok)
+}
+
+/// Whether an earth-frame field gives a heading: the mask of [`field_heading_error`].
+#[inline]
+pub(crate) fn heading_field_ok<T: Lane>(h: Vec3<T>) -> T::Mask {
+    horizontal_field(h).1
 }
 
 /// `|h_xy|²` of an earth-frame field and whether it gives a heading: finite, and at least

@@ -2,9 +2,12 @@
 //! [`complementary`].
 
 use super::LaneParams;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params, up};
+use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use super::{StateError, quat_without_covariance};
-use crate::blocks::{LowPassGain, integrate_gyro, magnetic_heading_error, turn_in_earth};
+use crate::blocks::{
+    LowPassGain, earth_turn_by_half, field_heading_error, gyro_increment, heading_field_ok,
+    integrate_gyro, turn_in_earth, turn_in_earth_by_half,
+};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -28,6 +31,11 @@ params! {
 ///
 /// Because the heading correction is a rotation about earth-z, a magnetic disturbance can
 /// never tilt the inclination (unlike filters that feed the magnetometer into all axes).
+///
+/// Within about 5.7° the correction angles come from series (`asin(s)/s` of the tilt,
+/// `atan(t)/t` of the heading, `t = h_x/h_y`), beyond from `atan2`; the sample's vectors are
+/// turned by the gyro step ([`gyro_increment`](crate::blocks::gyro_increment)) before the
+/// previous orientation rotates them, so only that rotation waits for the last update.
 #[derive(Clone, Debug)]
 pub struct Complementary<T: Lane> {
     q: Quat<T>,
@@ -70,8 +78,10 @@ impl<T: Lane> Complementary<T> {
 /// there only the series is computed, otherwise each lane selects by its own tilt.
 #[inline]
 pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
-    let axis = a_earth.cross(up());
-    let s2 = axis.norm_squared();
+    // `a × up`, written out: the products with up's zeros change no value but the sign of a
+    // zero, and would sit on the dependency chain.
+    let axis = Vec3::new(a_earth.y, -a_earth.x, T::zero());
+    let s2 = a_earth.x.mul_add(a_earth.x, a_earth.y * a_earth.y);
     let near = s2.simd_lt(T::from_f64(TILT_SERIES_S2)) & a_earth.z.simd_gt(T::zero());
     if near.all() {
         return axis * asin_ratio_series(s2);
@@ -90,26 +100,71 @@ const TILT_SERIES_S2: f64 = 0.01;
 /// `asin(s)/s = Σ C(2n, n)·s²ⁿ/(4ⁿ·(2n + 1))` at `s² < TILT_SERIES_S2`, by Horner in `s²`.
 #[inline(always)]
 fn asin_ratio_series<T: Lane>(s2: T) -> T {
-    const COEFFICIENTS: [f64; 8] = [
-        1.0,
-        1.0 / 6.0,
-        3.0 / 40.0,
-        5.0 / 112.0,
-        35.0 / 1152.0,
-        63.0 / 2816.0,
-        231.0 / 13312.0,
-        143.0 / 10240.0,
-    ];
+    ratio_series(
+        s2,
+        &[
+            1.0,
+            1.0 / 6.0,
+            3.0 / 40.0,
+            5.0 / 112.0,
+            35.0 / 1152.0,
+            63.0 / 2816.0,
+            231.0 / 13312.0,
+            143.0 / 10240.0,
+        ],
+    )
+}
+
+/// `atan(t)/t = Σ (−1)ⁿ·t²ⁿ/(2n + 1)` at `t² < TILT_SERIES_S2` (the first dropped term below
+/// `6·10⁻¹⁸` in `f64`, `1.2·10⁻⁹` in `f32`), by Horner in `t²`.
+#[inline(always)]
+fn atan_ratio_series<T: Lane>(t2: T) -> T {
+    ratio_series(
+        t2,
+        &[
+            1.0,
+            -1.0 / 3.0,
+            1.0 / 5.0,
+            -1.0 / 7.0,
+            1.0 / 9.0,
+            -1.0 / 11.0,
+            1.0 / 13.0,
+            -1.0 / 15.0,
+        ],
+    )
+}
+
+/// `Σ cₙ·x²ⁿ`: all eight coefficients in `f64`, the first four in `f32`.
+#[inline(always)]
+fn ratio_series<T: Lane>(x2: T, coefficients: &[f64; 8]) -> T {
     let terms = if core::mem::size_of::<T::Scalar>() == 8 {
         8
     } else {
         4
     };
-    let mut p = T::from_f64(COEFFICIENTS[terms - 1]);
-    for &c in COEFFICIENTS[..terms - 1].iter().rev() {
-        p = s2.mul_add(p, T::from_f64(c));
+    let mut p = T::from_f64(coefficients[terms - 1]);
+    for &c in coefficients[..terms - 1].iter().rev() {
+        p = x2.mul_add(p, T::from_f64(c));
     }
     p
+}
+
+/// [`field_heading_error`] of an earth-frame field `h`, `atan2(h_x, h_y)`, with the same mask;
+/// within about 5.7° of north (`h_y > 0`, `(h_x/h_y)² < 0.01`: every correction of a converged
+/// filter) from the series of `atan(t)/t`, `t = h_x/h_y`, with no `atan2` (a division and a
+/// longer polynomial); where every lane is there only the series is computed, otherwise each
+/// lane selects by its own `t`.
+#[inline]
+fn heading_error<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
+    let t = h.x / h.y;
+    let t2 = t * t;
+    let near = t2.simd_lt(T::from_f64(TILT_SERIES_S2)) & h.y.simd_gt(T::zero());
+    if near.all() {
+        let ok = heading_field_ok(h);
+        return (T::select(ok, t * atan_ratio_series(t2), T::zero()), ok);
+    }
+    let (exact, ok) = field_heading_error(h);
+    (T::select(near & ok, t * atan_ratio_series(t2), exact), ok)
 }
 
 impl<T: Lane> OrientationFilter<T> for Complementary<T> {
@@ -118,14 +173,27 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
         let mut q = integrate_gyro(q0, s.gyr, s.dt);
 
-        let k_acc = self.k_acc.gain(s.dt);
-        let tilt = tilt_correction(q.rotate(s.acc)) * k_acc;
-        let q_acc = turn_in_earth(q, tilt);
-        q = Quat::select(s.acc_ok, q_acc, q);
+        // The corrections measure the sample's vectors in the earth frame of `q = q0 ⊗ e`, as
+        // `R(q0)·(R(e)·v)`: `R(e)·v` depends on the sample only, so the one rotation left on
+        // the dependency chain starts from `q0`, beside the propagation instead of after it
+        // (the same rotations, associated differently: equal to rounding).
+        let e = gyro_increment(s.gyr, s.dt);
+        // Half the correction, the half folded into the gain (off the chain).
+        let k_acc_half = self.k_acc.gain(s.dt) * T::from_f64(0.5);
+        let tilt_half = tilt_correction(q0.rotate(e.rotate(s.acc))) * k_acc_half;
+        q = Quat::select(s.acc_ok, turn_in_earth_by_half(q, tilt_half), q);
 
         // 6D is the same for every lane and discards this correction: skipping it changes no bits.
         if self.nine_d {
-            let (dpsi, heading_ok) = magnetic_heading_error(q, s.mag);
+            // The field in the earth frame of the tilted `q`: turned by the tilt last, after
+            // the rotations that do not wait for it.
+            let h_gyro = q0.rotate(e.rotate(s.mag));
+            let h = Vec3::select(
+                s.acc_ok,
+                earth_turn_by_half(tilt_half).rotate(h_gyro),
+                h_gyro,
+            );
+            let (dpsi, heading_ok) = heading_error(h);
             let k_mag = self.k_mag.gain(s.dt);
             let q_mag = turn_in_earth(q, Vec3::new(T::zero(), T::zero(), dpsi * k_mag));
             q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
@@ -148,5 +216,62 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
     }
     fn rejections(&self) -> &Rejections<T> {
         &self.rejections
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rootfuse_lane::wide::f32x8;
+
+    /// Fields at every azimuth (the series within 5.7° of north, `atan2` beyond), with a dip.
+    fn field(azimuth: f64) -> Vec3<f64> {
+        Vec3::new(20.0 * azimuth.sin(), 20.0 * azimuth.cos(), -40.0)
+    }
+
+    #[test]
+    fn heading_error_is_atan2_to_rounding() {
+        for i in 0..4001 {
+            let azimuth = -3.14 + 6.28 * f64::from(i) / 4000.0;
+            let h = field(azimuth);
+            let exact = h.x.atan2(h.y);
+            let (e, ok) = heading_error(h);
+            assert!(
+                ok && (e - exact).abs() <= 4.0 * f64::EPSILON * exact.abs(),
+                "{azimuth}"
+            );
+            let h32 = Vec3::new(h.x as f32, h.y as f32, h.z as f32);
+            let exact32 = f64::from(h32.x).atan2(f64::from(h32.y));
+            let (e32, ok32) = heading_error(h32);
+            let tol = 4.0 * f64::from(f32::EPSILON) * exact32.abs();
+            assert!(ok32 && (f64::from(e32) - exact32).abs() <= tol, "{azimuth}");
+        }
+        // A vertical or unusable field gives no heading, in either path.
+        for h in [Vec3::new(0.0, 0.0, -40.0), Vec3::new(f64::NAN, 1.0, 0.0)] {
+            assert_eq!(heading_error(h), (0.0, false));
+        }
+    }
+
+    #[test]
+    fn heading_error_lanes_equal_scalars() {
+        // Lanes near north and far from it side by side take each its own path.
+        let azimuths = [0.01, 2.5, -0.05, -1.0, 0.09, 3.0, 0.0, -0.099];
+        let h32: [Vec3<f32>; 8] = core::array::from_fn(|i| {
+            let h = field(azimuths[i]);
+            Vec3::new(h.x as f32, h.y as f32, h.z as f32)
+        });
+        let lanes = Vec3::new(
+            f32x8::from(core::array::from_fn::<f32, 8, _>(|i| h32[i].x)),
+            f32x8::from(core::array::from_fn::<f32, 8, _>(|i| h32[i].y)),
+            f32x8::from(core::array::from_fn::<f32, 8, _>(|i| h32[i].z)),
+        );
+        let (e, _) = heading_error(lanes);
+        for (i, h) in h32.iter().enumerate() {
+            assert_eq!(
+                e.extract(i).to_bits(),
+                heading_error(*h).0.to_bits(),
+                "lane {i}"
+            );
+        }
     }
 }
