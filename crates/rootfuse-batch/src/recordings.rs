@@ -1,10 +1,10 @@
 //! [`run_recordings`]: whole recordings as channels, what the CLI calls.
 
-use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch};
+use crate::batch::{Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch};
 use rayon::prelude::*;
 use rootfuse_attitude::filters::SampleFlags;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
-use rootfuse_attitude::{Lane, Mat, OrientationFilter, Quat, Recording, Vec3};
+use rootfuse_attitude::{Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::X2;
 use rootfuse_lane::wide::{f32x8, f64x4};
 
@@ -437,12 +437,25 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource, K: EstimateSink>
         });
 }
 
-/// One step's estimates of every lane of a chunk, read lane by lane ([`StepLanes::lane`]).
-pub(crate) struct StepLanes<L: Lane> {
-    quat: Quat<L>,
-    bias: Option<Vec3<L>>,
-    covariance: Option<Mat<L, 3, 3>>,
-    flags: Option<SampleFlags<L>>,
+/// One step's estimates of every lane of a chunk, read lane by lane ([`StepLanes::lane`]):
+/// the lanes' values taken out of their vectors once per step, in `f64`, so that reading a
+/// lane is a load per value, not a vector spilled per value.
+pub(crate) struct StepLanes {
+    quat: [[f64; MAX_LANES]; 4],
+    bias: Option<[[f64; MAX_LANES]; 3]>,
+    covariance: Option<[[f64; MAX_LANES]; 6]>,
+    flags: Option<[u8; MAX_LANES]>,
+}
+
+/// Every lane of `x` in `f64` (lanes past `L::LANES` zero).
+#[inline]
+fn lane_values<L: Lane>(x: L) -> [f64; MAX_LANES] {
+    const { assert!(L::LANES <= MAX_LANES, "a lane type wider than MAX_LANES") };
+    let mut values = [0.0; MAX_LANES];
+    for (i, v) in values.iter_mut().enumerate().take(L::LANES) {
+        *v = x.extract(i).into();
+    }
+    values
 }
 
 impl Estimate {
@@ -450,35 +463,46 @@ impl Estimate {
     pub(crate) fn lanes<L: Lane, F: OrientationFilter<L>>(
         filter: &F,
         columns: Columns,
-    ) -> StepLanes<L> {
+    ) -> StepLanes {
+        let q = filter.quat();
         StepLanes {
-            quat: filter.quat(),
-            bias: columns.bias.then(|| filter.bias()),
+            quat: [q.w, q.x, q.y, q.z].map(lane_values),
+            bias: columns.bias.then(|| {
+                let b = filter.bias();
+                [b.x, b.y, b.z].map(lane_values)
+            }),
             covariance: if columns.covariance {
-                filter.attitude_covariance()
+                filter.attitude_covariance().map(|p| {
+                    let m = &p.m;
+                    [m[0][0], m[0][1], m[0][2], m[1][1], m[1][2], m[2][2]].map(lane_values)
+                })
             } else {
                 None
             },
-            flags: columns.flags.then(|| filter.flags()),
+            flags: columns.flags.then(|| {
+                let f: SampleFlags<L> = filter.flags();
+                core::array::from_fn(|i| if i < L::LANES { f.bits(i) } else { 0 })
+            }),
         }
     }
 }
 
-impl<L: Lane> StepLanes<L> {
+impl StepLanes {
     /// Lane `i`'s estimates.
+    #[inline]
     pub(crate) fn lane(&self, i: usize) -> Estimate {
-        let q = self.quat.lane(i);
+        let q = &self.quat;
         Estimate {
-            quat: Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()),
-            bias: self.bias.map(|b| {
-                let b = b.lane(i);
-                Vec3::new(b.x.into(), b.y.into(), b.z.into())
-            }),
-            covariance: self.covariance.as_ref().map(|p| {
-                let at = |r: usize, c: usize| -> f64 { p.m[r][c].extract(i).into() };
-                [at(0, 0), at(0, 1), at(0, 2), at(1, 1), at(1, 2), at(2, 2)]
-            }),
-            flags: self.flags.as_ref().map(|f| f.bits(i)),
+            quat: Quat::new(q[0][i], q[1][i], q[2][i], q[3][i]),
+            bias: self
+                .bias
+                .as_ref()
+                .map(|b| Vec3::new(b[0][i], b[1][i], b[2][i])),
+            covariance: self
+                .covariance
+                .as_ref()
+                .map(|p| core::array::from_fn(|j| p[j][i])),
+            flags: self.flags.as_ref().map(|f| f[i]),
         }
     }
 }

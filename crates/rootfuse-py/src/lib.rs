@@ -18,6 +18,7 @@ mod inputs;
 mod lsq;
 mod many;
 mod registry;
+mod series_arrays;
 mod smooth;
 
 use pyo3::prelude::*;

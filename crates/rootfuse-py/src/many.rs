@@ -3,7 +3,7 @@
 //! Input arrays are borrowed as they are (float32 or float64, never widened into a copy) and
 //! read by the engine a tile of samples per channel at a time
 //! ([`ChannelSource::read_into`](rootfuse_batch::ChannelSource::read_into)); series are
-//! written by the engine straight into NumPy arrays allocated once
+//! written by the engine straight into NumPy arrays allocated once, or the caller's (`out`)
 //! ([`EstimateSink`](rootfuse_batch::EstimateSink)).
 
 use crate::arrays::{
@@ -12,15 +12,14 @@ use crate::arrays::{
 };
 use crate::filter::{rejections_dict, spec_from};
 use crate::inputs::Inputs;
+use crate::series_arrays::{ArraySink, SeriesArrays, SeriesFloat, SeriesViews};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::registry::FilterSpec;
-use rootfuse_batch::{
-    Columns, Estimate, EstimateSink, Precision, RejectionTotals, run_final_states, run_into_sinks,
-};
+use rootfuse_batch::{Columns, Precision, RejectionTotals, run_final_states, run_into_sinks};
 
 /// Channels as given: one `(C, N, 3)` array, or a list of `(N_i, 3)` arrays.
 struct Channels<'py> {
@@ -298,8 +297,14 @@ fn final_states<'py>(
 /// (`docs/performance.md`); with `precision="f32"` their values are the float64 ones exactly,
 /// with `"f64"` rounded. With `series=False` only the final state: `{"quat": (C, 4),
 /// "bias": (C, 3), "rejections": [...]}`.
+///
+/// `out`: for `(C, N, 3)` input, a dict of arrays to write the series into instead of new
+/// ones (the keys and shapes of the result, one float type, C-contiguous and writeable; their
+/// float type is the series' `dtype`): a caller that runs fleet after fleet of one shape
+/// reuses its memory, where new arrays cost the system zeroing their pages. Returns a dict
+/// holding those same arrays.
 #[pyfunction]
-#[pyo3(signature = (name, gyr, acc, mag=None, dt=None, *, t=None, dof=None, precision="f32", channel_params=None, series=true, bias=true, covariance=false, flags=true, dtype=None, **params))]
+#[pyo3(signature = (name, gyr, acc, mag=None, dt=None, *, t=None, dof=None, precision="f32", channel_params=None, series=true, bias=true, covariance=false, flags=true, dtype=None, out=None, **params))]
 #[allow(clippy::too_many_arguments)]
 pub fn run_many<'py>(
     py: Python<'py>,
@@ -317,10 +322,15 @@ pub fn run_many<'py>(
     covariance: bool,
     flags: bool,
     dtype: Option<&Bound<'py, PyAny>>,
+    out: Option<&Bound<'py, PyAny>>,
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let prec = crate::filter::precision(precision)?;
-    let single = series_dtype(py, dtype)?;
+    let out = out.filter(|o| !o.is_none());
+    let single = match out {
+        Some(o) => out_dtype(py, o, dtype)?,
+        None => series_dtype(py, dtype)?,
+    };
     let g = channels(gyr, "gyr")?;
     let a = channels(acc, "acc")?;
     check_lens("acc", &a.lens, &g.lens)?;
@@ -351,7 +361,17 @@ pub fn run_many<'py>(
         })
         .collect();
     if !series {
+        if out.is_some() {
+            return Err(PyValueError::new_err(
+                "out: series=False returns only the final state: give out with series=True",
+            ));
+        }
         return final_states(py, &specs, &sources, prec, count);
+    }
+    if out.is_some() && !g.stacked {
+        return Err(PyTypeError::new_err(
+            "out: only for (C, N, 3) input arrays, not lists of channels",
+        ));
     }
     let has_cov = specs
         .first()
@@ -370,10 +390,44 @@ pub fn run_many<'py>(
         columns,
     };
     if single {
-        run.into_arrays::<f32>(py)
+        run.into_arrays::<f32>(py, out)
     } else {
-        run.into_arrays::<f64>(py)
+        run.into_arrays::<f64>(py, out)
     }
+}
+
+/// `out`'s float type (true for float32): that of its `"quat"` array, which `dtype`, if
+/// given, must name.
+fn out_dtype(
+    py: Python<'_>,
+    out: &Bound<'_, PyAny>,
+    dtype: Option<&Bound<'_, PyAny>>,
+) -> PyResult<bool> {
+    let out = out.cast::<PyDict>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "out: expected a dict of arrays (keys quat, bias, covariance, flags), got {}",
+            type_name(out)
+        ))
+    })?;
+    let quat = out.get_item("quat")?.ok_or_else(|| {
+        PyValueError::new_err("out: missing \"quat\": a (C, N, 4) float32 or float64 array")
+    })?;
+    let single = if quat.cast::<PyArrayDyn<f32>>().is_ok() {
+        true
+    } else if quat.cast::<PyArrayDyn<f64>>().is_ok() {
+        false
+    } else {
+        return Err(PyTypeError::new_err(format!(
+            "out[\"quat\"]: expected a float32 or float64 array, got {}",
+            crate::arrays::dtype_name(&quat)
+        )));
+    };
+    if dtype.is_some_and(|d| !d.is_none()) && series_dtype(py, dtype)? != single {
+        return Err(PyValueError::new_err(
+            "dtype: differs from out's arrays; leave dtype out to write in theirs",
+        ));
+    }
+    Ok(single)
 }
 
 /// `dtype`: true for float32 series, false for float64 (the default, `None`).
@@ -412,7 +466,12 @@ struct Series<'a, 'b> {
 }
 
 impl Series<'_, '_> {
-    fn into_arrays<'py, E: SeriesFloat>(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    /// The series in new arrays, or in the caller's `out` (stacked input only).
+    fn into_arrays<'py, E: SeriesFloat>(
+        self,
+        py: Python<'py>,
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let (count, columns) = (self.lens.len(), self.columns);
         // The outputs: one set of arrays for stacked input (each channel a contiguous part of
         // it), one per channel for lists.
@@ -421,10 +480,13 @@ impl Series<'_, '_> {
         } else {
             self.lens.iter().map(|&n| vec![n]).collect()
         };
-        let outputs: Vec<SeriesArrays<'py, E>> = shapes
-            .iter()
-            .map(|lead| SeriesArrays::zeros(py, lead, columns))
-            .collect();
+        let outputs: Vec<SeriesArrays<'py, E>> = match out {
+            Some(out) => vec![SeriesArrays::given(out, &shapes[0], columns)?],
+            None => shapes
+                .iter()
+                .map(|lead| SeriesArrays::zeros(py, lead, columns))
+                .collect(),
+        };
         let mut views: Vec<SeriesViews<'_, 'py, E>> = outputs
             .iter()
             .map(SeriesArrays::views)
@@ -461,26 +523,6 @@ impl Series<'_, '_> {
     }
 }
 
-/// The float types series are written in: the engine's f64 estimates converted on the way
-/// in (exactly, for `f32` lanes' values into `f32`).
-trait SeriesFloat: numpy::Element + Copy {
-    fn of(x: f64) -> Self;
-}
-
-impl SeriesFloat for f64 {
-    #[inline]
-    fn of(x: f64) -> Self {
-        x
-    }
-}
-
-impl SeriesFloat for f32 {
-    #[inline]
-    fn of(x: f64) -> Self {
-        x as f32
-    }
-}
-
 /// Channels grouped by equal spec, each group through the batch engine, every channel's
 /// estimates into its own sink (a channel's result does not depend on its chunk mates).
 fn run_grouped<E: SeriesFloat>(
@@ -511,167 +553,5 @@ fn run_grouped<E: SeriesFloat>(
         for (c, s) in members.into_iter().zip(group) {
             sinks[c] = s;
         }
-    }
-}
-
-/// The series arrays of one output dict, allocated once with `zeros` (numpy maps zeroed
-/// pages lazily, so the engine's write is the only touch), shapes `lead + [4]` etc.
-struct SeriesArrays<'py, E: SeriesFloat> {
-    quat: Bound<'py, PyArrayDyn<E>>,
-    bias: Option<Bound<'py, PyArrayDyn<E>>>,
-    covariance: Option<Bound<'py, PyArrayDyn<E>>>,
-    flags: Option<Bound<'py, PyArrayDyn<u8>>>,
-}
-
-impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
-    fn zeros(py: Python<'py>, lead: &[usize], columns: Columns) -> Self {
-        let shape = |tail: &[usize]| -> Vec<usize> { lead.iter().chain(tail).copied().collect() };
-        Self {
-            quat: PyArrayDyn::zeros(py, shape(&[4]), false),
-            bias: columns
-                .bias
-                .then(|| PyArrayDyn::zeros(py, shape(&[3]), false)),
-            covariance: columns
-                .covariance
-                .then(|| PyArrayDyn::zeros(py, shape(&[3, 3]), false)),
-            flags: columns
-                .flags
-                .then(|| PyArrayDyn::zeros(py, shape(&[]), false)),
-        }
-    }
-
-    fn views(&self) -> PyResult<SeriesViews<'_, 'py, E>> {
-        // Arrays made here and not yet handed to Python: nothing else can borrow them.
-        let busy = |e: numpy::BorrowError| pyo3::exceptions::PyRuntimeError::new_err(e.to_string());
-        Ok(SeriesViews {
-            quat: self.quat.try_readwrite().map_err(busy)?,
-            bias: self
-                .bias
-                .as_ref()
-                .map(|a| a.try_readwrite())
-                .transpose()
-                .map_err(busy)?,
-            covariance: self
-                .covariance
-                .as_ref()
-                .map(|a| a.try_readwrite())
-                .transpose()
-                .map_err(busy)?,
-            flags: self
-                .flags
-                .as_ref()
-                .map(|a| a.try_readwrite())
-                .transpose()
-                .map_err(busy)?,
-            _arrays: core::marker::PhantomData,
-        })
-    }
-
-    fn into_dict(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let out = PyDict::new(py);
-        out.set_item("quat", self.quat)?;
-        if let Some(b) = self.bias {
-            out.set_item("bias", b)?;
-        }
-        if let Some(p) = self.covariance {
-            out.set_item("covariance", p)?;
-        }
-        if let Some(f) = self.flags {
-            out.set_item("flags", f)?;
-        }
-        Ok(out)
-    }
-}
-
-/// Write access to one [`SeriesArrays`] while the engine runs.
-struct SeriesViews<'s, 'py, E: SeriesFloat> {
-    quat: numpy::PyReadwriteArrayDyn<'py, E>,
-    bias: Option<numpy::PyReadwriteArrayDyn<'py, E>>,
-    covariance: Option<numpy::PyReadwriteArrayDyn<'py, E>>,
-    flags: Option<numpy::PyReadwriteArrayDyn<'py, u8>>,
-    _arrays: core::marker::PhantomData<&'s SeriesArrays<'py, E>>,
-}
-
-impl<E: SeriesFloat> SeriesViews<'_, '_, E> {
-    /// One sink per channel over `channels` equal contiguous parts of the arrays.
-    fn split(&mut self, channels: usize) -> Vec<ArraySink<'_, E>> {
-        fn parts<'a, T: numpy::Element>(
-            a: Option<&'a mut numpy::PyReadwriteArrayDyn<'_, T>>,
-            channels: usize,
-        ) -> Vec<&'a mut [T]> {
-            match a.and_then(|a| a.as_slice_mut().ok()) {
-                Some(s) if channels > 0 => {
-                    let per = s.len() / channels;
-                    if per == 0 {
-                        (0..channels).map(|_| Default::default()).collect()
-                    } else {
-                        s.chunks_mut(per).collect()
-                    }
-                }
-                _ => (0..channels).map(|_| Default::default()).collect(),
-            }
-        }
-        let quat = parts(Some(&mut self.quat), channels);
-        let bias = parts(self.bias.as_mut(), channels);
-        let covariance = parts(self.covariance.as_mut(), channels);
-        let flags = parts(self.flags.as_mut(), channels);
-        quat.into_iter()
-            .zip(bias)
-            .zip(covariance)
-            .zip(flags)
-            .map(|(((quat, bias), covariance), flags)| ArraySink {
-                quat,
-                bias,
-                covariance,
-                flags,
-                rejections: RejectionTotals::default(),
-            })
-            .collect()
-    }
-}
-
-/// One channel's part of the output arrays: sample `k` goes to rows `k` (an empty slice is
-/// a series not collected).
-struct ArraySink<'a, E> {
-    quat: &'a mut [E],
-    bias: &'a mut [E],
-    covariance: &'a mut [E],
-    flags: &'a mut [u8],
-    rejections: RejectionTotals,
-}
-
-// Not derived: a derived `Default` would ask `E: Default` of the slices' element.
-impl<E> Default for ArraySink<'_, E> {
-    fn default() -> Self {
-        Self {
-            quat: &mut [],
-            bias: &mut [],
-            covariance: &mut [],
-            flags: &mut [],
-            rejections: RejectionTotals::default(),
-        }
-    }
-}
-
-impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
-    #[inline]
-    fn push(&mut self, k: usize, e: &Estimate) {
-        let of = E::of;
-        if let Some(q) = self.quat.get_mut(4 * k..4 * k + 4) {
-            q.copy_from_slice(&[of(e.quat.w), of(e.quat.x), of(e.quat.y), of(e.quat.z)]);
-        }
-        if let (Some(b), Some(out)) = (e.bias, self.bias.get_mut(3 * k..3 * k + 3)) {
-            out.copy_from_slice(&[of(b.x), of(b.y), of(b.z)]);
-        }
-        if let (Some(u), Some(out)) = (e.covariance, self.covariance.get_mut(9 * k..9 * k + 9)) {
-            let u = u.map(of);
-            out.copy_from_slice(&[u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]]);
-        }
-        if let (Some(f), Some(out)) = (e.flags, self.flags.get_mut(k)) {
-            *out = f;
-        }
-    }
-    fn finish(&mut self, rejections: RejectionTotals) {
-        self.rejections = rejections;
     }
 }

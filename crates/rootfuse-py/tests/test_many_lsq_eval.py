@@ -58,6 +58,63 @@ def test_run_many_float32_series(precision):
         rf.run_many("mahony", gyr, acc, None, 0.01, dtype="int16")
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_run_many_into_given_arrays(dtype):
+    """out=: the series written into the caller's arrays, the same values as new ones, every
+    element overwritten (the arrays start as garbage), on every reuse; wrong shapes, types,
+    keys, read-only or input-sharing arrays are refused by name before anything is written."""
+    recs = sims(11)
+    gyr = np.stack([r["gyr"] for r in recs]); acc = np.stack([r["acc"] for r in recs])
+    mag = np.stack([r["mag"] for r in recs])
+    gyr[3, 7] = np.nan
+    C, N = gyr.shape[:2]
+    new = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, covariance=True, dtype=dtype)
+    out = {"quat": np.full((C, N, 4), 7.0, dtype), "bias": np.full((C, N, 3), 7.0, dtype),
+           "covariance": np.full((C, N, 3, 3), 7.0, dtype), "flags": np.full((C, N), 255, np.uint8)}
+    for _ in range(2):
+        got = rf.run_many("sqrt-eskf", gyr, acc, mag, 0.01, covariance=True, out=out)
+        for key in ("quat", "bias", "covariance", "flags"):
+            assert got[key] is out[key]
+            np.testing.assert_array_equal(out[key], new[key])
+        assert got["rejections"] == new["rejections"]
+    # Only the series asked for are needed; the quaternions of a 6D Mahony run.
+    quat = np.empty((C, N, 4), dtype)
+    got = rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False, out={"quat": quat})
+    np.testing.assert_array_equal(quat, rf.run_many("mahony", gyr, acc, None, 0.01, dtype=dtype)["quat"])
+    other = np.float32 if dtype == np.float64 else np.float64
+    before = quat.copy()
+    bad = [
+        ({"quat": np.empty((C, N + 1, 4), dtype)}, ValueError, r"out\[\"quat\"\]: .*shape \[11, 101, 4\]"),
+        ({"quat": np.empty((C, N, 4), np.int32)}, TypeError, r"out\[\"quat\"\]: expected a float32 or float64"),
+        ({"quat": quat, "bias": np.empty((C, N, 3), other)}, TypeError, r"out\[\"bias\"\]: expected a"),
+        ({"quat": quat}, ValueError, r"out: missing \"bias\".*bias=False"),
+        ({"quat": quat, "bias": np.empty((C, N, 3), dtype), "flag": 1}, ValueError, r"unknown key \"flag\""),
+        ({"quat": np.empty((C, 4, N), dtype).transpose(0, 2, 1)}, ValueError, r"not C-contiguous"),
+        ([quat], TypeError, r"out: expected a dict"),
+    ]
+    for given, error, message in bad:
+        with pytest.raises(error, match=message):
+            rf.run_many("mahony", gyr, acc, None, 0.01, flags=False, out=given)
+    frozen = np.empty((C, N, 4), dtype); frozen.flags.writeable = False
+    with pytest.raises(ValueError, match=r"out: an array cannot be written"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False, out={"quat": frozen})
+    # An output sharing memory with an input: refused, the input untouched.
+    memory = np.zeros(C * N * 4, dtype)
+    memory[: C * N * 3] = gyr.ravel()
+    shared = memory[: C * N * 3].reshape(C, N, 3)
+    with pytest.raises(ValueError, match=r"out: an array cannot be written"):
+        rf.run_many("mahony", shared, acc, None, 0.01, bias=False, flags=False,
+                    out={"quat": memory.reshape(C, N, 4)})
+    np.testing.assert_array_equal(shared, gyr.astype(dtype))
+    with pytest.raises(ValueError, match=r"dtype: differs from out"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False, dtype=other, out={"quat": quat})
+    with pytest.raises(ValueError, match=r"series=False"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, series=False, out={"quat": quat})
+    with pytest.raises(TypeError, match=r"not lists"):
+        rf.run_many("mahony", list(gyr), list(acc), None, 0.01, bias=False, flags=False, out={"quat": quat})
+    np.testing.assert_array_equal(quat, before)
+
+
 def test_run_many_lists_of_different_lengths_and_channel_params():
     recs = [rf.simulate("fast-rotation", seed=s, duration_s=0.5 + 0.25 * s) for s in range(5)]
     params = [{"kp": 0.5 + 0.1 * c} for c in range(5)]

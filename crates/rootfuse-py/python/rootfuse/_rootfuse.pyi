@@ -221,11 +221,13 @@ def run_many(
     covariance: bool = False,
     flags: bool = True,
     dtype: Union[str, type, None] = None,
+    out: Optional[Dict[str, _FloatArray]] = None,
     **params: float,
 ) -> _ManySeries:
     """(C, N, 3) arrays through the SIMD batch engine on all cores (f32 by default); each
     channel equals a ``Filter`` run bit for bit. ``dtype="float32"``: float32 series (half
-    the memory; the same values with ``precision="f32"``)."""
+    the memory; the same values with ``precision="f32"``). ``out``: a dict of arrays of the
+    result's keys and shapes to write into (reused from call to call), returned."""
 
 @overload
 def run_many(
