@@ -137,8 +137,10 @@ fn c_order<'py, T: numpy::Element + Copy>(
             ))));
         }
     };
-    // `as_slice` also accepts Fortran order, whose memory is not C order: check first.
-    let data = if a.is_c_contiguous() && ro.as_slice().is_ok() {
+    // `as_slice` also accepts Fortran order, whose memory is not C order, and unaligned
+    // memory (an array over a buffer), which a slice must not be: check both first.
+    let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<T>());
+    let data = if a.is_c_contiguous() && aligned && ro.as_slice().is_ok() {
         Ok(ro)
     } else {
         Err(ro.as_array().iter().copied().collect())

@@ -368,10 +368,14 @@ pub fn run_many<'py>(
         }
         return final_states(py, &specs, &sources, prec, count);
     }
-    if out.is_some() && !g.stacked {
-        return Err(PyTypeError::new_err(
-            "out: only for (C, N, 3) input arrays, not lists of channels",
-        ));
+    if let Some(out) = out {
+        if !g.stacked {
+            return Err(PyTypeError::new_err(
+                "out: only for (C, N, 3) input arrays, not lists of channels",
+            ));
+        }
+        let inputs = [Some(gyr), Some(acc), mag.filter(|m| !m.is_none())];
+        check_out_memory(py, out, &inputs)?;
     }
     let has_cov = specs
         .first()
@@ -394,6 +398,40 @@ pub fn run_many<'py>(
     } else {
         run.into_arrays::<f64>(py, out)
     }
+}
+
+/// Refuses `out` arrays that may share memory with an input or with each other
+/// (`numpy.may_share_memory`: NumPy's borrow tracking sees only views of one base object,
+/// not two buffers over the same memory).
+fn check_out_memory(
+    py: Python<'_>,
+    out: &Bound<'_, PyAny>,
+    inputs: &[Option<&Bound<'_, PyAny>>],
+) -> PyResult<()> {
+    let Ok(out) = out.cast::<PyDict>() else {
+        return Ok(()); // `out_dtype` has named the type already
+    };
+    let shares = py.import("numpy")?.getattr("may_share_memory")?;
+    let items: Vec<(String, Bound<'_, PyAny>)> =
+        out.iter().map(|(k, v)| (k.to_string(), v)).collect();
+    for (i, (key, array)) in items.iter().enumerate() {
+        let named_inputs = ["gyr", "acc", "mag"].into_iter().zip(inputs);
+        for (name, input) in named_inputs.filter_map(|(n, x)| x.map(|x| (n, x))) {
+            if shares.call1((array, input))?.is_truthy()? {
+                return Err(PyValueError::new_err(format!(
+                    "out[{key:?}]: shares memory with {name}: give arrays of their own"
+                )));
+            }
+        }
+        for (other, array2) in &items[i + 1..] {
+            if shares.call1((array, array2))?.is_truthy()? {
+                return Err(PyValueError::new_err(format!(
+                    "out[{key:?}]: shares memory with out[{other:?}]: give arrays of their own"
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `out`'s float type (true for float32): that of its `"quat"` array, which `dtype`, if

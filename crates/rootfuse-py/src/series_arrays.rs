@@ -63,9 +63,21 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
         let out = out.cast::<PyDict>()?;
         for key in out.keys() {
             let key: String = key.extract().unwrap_or_default();
-            if !["quat", "bias", "covariance", "flags"].contains(&key.as_str()) {
+            let computed = match key.as_str() {
+                "quat" => true,
+                "bias" => columns.bias,
+                "covariance" => columns.covariance,
+                "flags" => columns.flags,
+                _ => {
+                    return Err(PyValueError::new_err(format!(
+                        "out: unknown key {key:?} (expected quat, bias, covariance, flags)"
+                    )));
+                }
+            };
+            // An array that is not written would keep an earlier fleet's values unnoticed.
+            if !computed {
                 return Err(PyValueError::new_err(format!(
-                    "out: unknown key {key:?} (expected quat, bias, covariance, flags)"
+                    "out: has {key:?}, a series this call does not compute ({key}=False, or a filter without it): remove the key"
                 )));
             }
         }
@@ -99,6 +111,12 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
                     } else {
                         ", not C-contiguous"
                     }
+                )));
+            }
+            // A slice of `T` must be aligned (NumPy allows unaligned arrays, from a buffer).
+            if !(a.data() as usize).is_multiple_of(std::mem::align_of::<T>()) {
+                return Err(PyValueError::new_err(format!(
+                    "out[{key:?}]: the array's memory is not aligned for {what}: give an array NumPy allocated (numpy.empty)"
                 )));
             }
             Ok(Some(a.clone()))

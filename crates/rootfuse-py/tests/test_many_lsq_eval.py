@@ -102,10 +102,29 @@ def test_run_many_into_given_arrays(dtype):
     memory = np.zeros(C * N * 4, dtype)
     memory[: C * N * 3] = gyr.ravel()
     shared = memory[: C * N * 3].reshape(C, N, 3)
-    with pytest.raises(ValueError, match=r"out: an array cannot be written"):
+    with pytest.raises(ValueError, match=r"out\[\"quat\"\]: shares memory with gyr"):
         rf.run_many("mahony", shared, acc, None, 0.01, bias=False, flags=False,
                     out={"quat": memory.reshape(C, N, 4)})
     np.testing.assert_array_equal(shared, gyr.astype(dtype))
+    # Two buffers over the same memory (NumPy's borrow tracking sees only one base object).
+    raw = bytearray(C * N * 4 * np.dtype(dtype).itemsize)
+    with pytest.raises(ValueError, match=r"out\[\"quat\"\]: shares memory with gyr"):
+        rf.run_many("mahony", np.frombuffer(memoryview(raw)[: C * N * 3 * np.dtype(dtype).itemsize], dtype).reshape(C, N, 3),
+                    acc, None, 0.01, bias=False, flags=False,
+                    out={"quat": np.frombuffer(raw, dtype).reshape(C, N, 4)})
+    both = np.empty((C, N, 4), dtype)
+    with pytest.raises(ValueError, match=r"shares memory with out\[\"bias\"\]"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, flags=False,
+                    out={"quat": both, "bias": both[:, :, :3]})
+    # Memory not aligned for the float type: refused, not written through.
+    unaligned = np.frombuffer(bytearray(C * N * 4 * np.dtype(dtype).itemsize + 1), dtype,
+                              count=C * N * 4, offset=1).reshape(C, N, 4)
+    with pytest.raises(ValueError, match=r"not aligned"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False, out={"quat": unaligned})
+    # A key for a series the call does not compute would keep stale values: refused.
+    with pytest.raises(ValueError, match=r"out: has \"flags\", a series this call does not compute"):
+        rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False,
+                    out={"quat": quat, "flags": np.empty((C, N), np.uint8)})
     with pytest.raises(ValueError, match=r"dtype: differs from out"):
         rf.run_many("mahony", gyr, acc, None, 0.01, bias=False, flags=False, dtype=other, out={"quat": quat})
     with pytest.raises(ValueError, match=r"series=False"):

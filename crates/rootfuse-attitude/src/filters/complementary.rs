@@ -246,9 +246,15 @@ mod tests {
             let tol = 4.0 * f64::from(f32::EPSILON) * exact32.abs();
             assert!(ok32 && (f64::from(e32) - exact32).abs() <= tol, "{azimuth}");
         }
-        // A vertical or unusable field gives no heading, in either path.
-        for h in [Vec3::new(0.0, 0.0, -40.0), Vec3::new(f64::NAN, 1.0, 0.0)] {
-            assert_eq!(heading_error(h), (0.0, false));
+        // A vertical or unusable field gives no heading, in either path: `atan2`'s (h_y 0 or
+        // NaN) and the series' (near north, but too vertical or not finite).
+        for h in [
+            Vec3::new(0.0, 0.0, -40.0),
+            Vec3::new(f64::NAN, 1.0, 0.0),
+            Vec3::new(0.0, 0.01, -40.0),
+            Vec3::new(0.0, f64::INFINITY, 0.0),
+        ] {
+            assert_eq!(heading_error(h), (0.0, false), "{h:?}");
         }
     }
 

@@ -221,7 +221,7 @@ def run_many(
     covariance: bool = False,
     flags: bool = True,
     dtype: Union[str, type, None] = None,
-    out: Optional[Dict[str, _FloatArray]] = None,
+    out: Optional[Dict[str, npt.NDArray[Any]]] = None,
     **params: float,
 ) -> _ManySeries:
     """(C, N, 3) arrays through the SIMD batch engine on all cores (f32 by default); each
