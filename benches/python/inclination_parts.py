@@ -1,0 +1,102 @@
+"""Where online inclination error comes from, trial by trial: the part that stays constant in
+the sensor frame and the part that varies, for the flagship (6D, its defaults and with one
+accelerometer window) and for VQF online (the `vqf` package), on the shared BROAD trials.
+
+    .venv/bin/python benches/python/inclination_parts.py [--broad DIR] [--docs docs/accuracy.md]
+
+The inclination error of a sample is the small rotation between the estimated and the true
+up direction in the sensor frame, `d = up_est × up_true` (degrees; its norm is the angle). Over
+the samples the BROAD metric counts, its mean `m` is the constant part, and `rms² = |m|² +
+varying²` splits the RMSE: a constant tilt that two filters share is the sensor's own (an
+accelerometer offset or misalignment against the optical frame), one that differs is made by
+the filter. With `--docs` the table replaces the text between `<!-- inclination_parts:begin -->`
+and `<!-- inclination_parts:end -->` in that file.
+"""
+
+import argparse
+import pathlib
+import platform
+import subprocess
+import sys
+
+import numpy as np
+
+import rootfuse as rf
+
+try:
+    import vqf
+except ImportError:  # a bench, not a test: say what is missing and stop
+    sys.exit("vqf is not installed: .venv/bin/pip install vqf")
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def up_in_sensor(q):
+    """Earth-up in the sensor frame of sensor-to-earth quaternions `[w, x, y, z]` (N, 4)."""
+    w, x, y, z = q.T
+    return np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
+
+
+def parts(quat, rec, used):
+    """Constant part, varying part and RMSE of the inclination error, degrees."""
+    d = np.degrees(np.cross(up_in_sensor(quat[used]), up_in_sensor(rec["truth"][used])))
+    rms = float(np.sqrt((d ** 2).sum(axis=1).mean()))
+    constant = float(np.linalg.norm(d.mean(axis=0)))
+    return constant, float(np.sqrt(max(rms ** 2 - constant ** 2, 0.0))), rms
+
+
+def estimates(rec):
+    t = rec["t"]
+    dt = float(np.median(np.diff(t)))
+    gyr, acc = np.ascontiguousarray(rec["gyr"]), np.ascontiguousarray(rec["acc"])
+    return {
+        "flagship": rf.Filter("flagship", dof=6).update_batch(gyr, acc, None, t=t)["quat"],
+        "one window": rf.Filter("flagship", dof=6, tau_acc_long=0).update_batch(gyr, acc, None, t=t)["quat"],
+        "VQF online": vqf.VQF(dt).updateBatch(gyr, acc)["quat6D"],
+    }
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
+    p.add_argument("--docs", help="write the table into this file between the markers")
+    a = p.parse_args(argv)
+    files = sorted(f for f in pathlib.Path(a.broad).glob("*.csv") if f.name[:2].isdigit())
+    if not files:
+        sys.exit(f"no BROAD trials in {a.broad}")
+    rows, sums = [], {}
+    for f in files:
+        rec = rf.read_csv(f)
+        est = estimates(rec)
+        used = rf.error_series(est["flagship"], rec, dof=6)["used"]
+        cells = {name: parts(q, rec, used) for name, q in est.items()}
+        for name, c in cells.items():
+            sums.setdefault(name, []).append(c)
+        rows.append((f.name[:2], cells))
+        print(f"{f.name[:2]} done", file=sys.stderr)
+    names = list(sums)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    lines = [
+        f"Inclination error, degrees, constant / varying / RMSE (6D, online). {platform.node()}, "
+        f"commit {commit}, `benches/python/inclination_parts.py`, vqf {getattr(vqf, '__version__', '?')}.",
+        "",
+        "| trial | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    fmt = lambda c: f"{c[0]:.2f} / {c[1]:.2f} / {c[2]:.3f}"
+    for trial, cells in rows:
+        lines.append(f"| {trial} | " + " | ".join(fmt(cells[n]) for n in names) + " |")
+    means = {n: tuple(np.mean(sums[n], axis=0)) for n in names}
+    lines.append("| **mean** | " + " | ".join(fmt(means[n]) for n in names) + " |")
+    text = "\n".join(lines)
+    print(text)
+    if a.docs:
+        page = pathlib.Path(a.docs).read_text()
+        begin, end = "<!-- inclination_parts:begin -->\n", "<!-- inclination_parts:end -->"
+        before, rest = page.split(begin)
+        _, after = rest.split(end)
+        pathlib.Path(a.docs).write_text(before + begin + text + "\n" + end + after)
+
+
+if __name__ == "__main__":
+    main()
