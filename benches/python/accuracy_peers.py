@@ -16,11 +16,11 @@ the tables replace the text between `<!-- accuracy_peers:begin -->` and
 import argparse
 import pathlib
 import platform
-import subprocess
 import sys
 
 import numpy as np
 
+import docs_page
 import rootfuse as rf
 
 try:
@@ -121,7 +121,7 @@ def main(argv=None):
     p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
     p.add_argument("--docs", help="write the tables into this file between the markers")
     a = p.parse_args(argv)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    commit = docs_page.commit()
     head = (
         f"Mean RMSE, degrees, total / inclination. {platform.node()}, commit {commit}, "
         f"`benches/python/accuracy_peers.py --seeds {a.seeds} --seconds {a.seconds:g}`, vqf {VQF_VERSION}."
@@ -131,11 +131,7 @@ def main(argv=None):
         text += "\n\n" + table(broad_rows(a.broad), "recordings")
     print(text)
     if a.docs:
-        page = pathlib.Path(a.docs).read_text()
-        begin, end = "<!-- accuracy_peers:begin -->\n", "<!-- accuracy_peers:end -->"
-        before, rest = page.split(begin)
-        _, after = rest.split(end)
-        pathlib.Path(a.docs).write_text(before + begin + text + "\n" + end + after)
+        docs_page.write_between_markers(a.docs, "accuracy_peers", text)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+import docs_page
 import rootfuse as rf
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
@@ -210,21 +211,14 @@ def main():
     if not args.skip_arrow:
         with tempfile.TemporaryDirectory(dir=REPO / "target") as d:
             arrow_rows(args, rows, pathlib.Path(d))
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    commit = docs_page.commit()
     command = (f"benches/python/fleet_doors.py --channels {args.channels} --samples {args.samples} "
                f"--rows {args.rows:g} --repeats {args.repeats}" + (" --skip-arrow" if args.skip_arrow else ""))
     source = f"{platform.node()}, commit {commit}, `{command}`."
     text = source + "\n\n" + table(rows, f"{args.channels} x {args.samples} channels of {data}")
     print(text)
     if args.docs:
-        page = REPO / args.docs
-        s = page.read_text()
-        begin, end = "<!-- fleet_doors:begin -->", "<!-- fleet_doors:end -->"
-        if begin not in s:
-            sys.exit(f"{args.docs} has no fleet_doors markers")
-        head, rest = s.split(begin, 1)
-        _, tail = rest.split(end, 1)
-        page.write_text(f"{head}{begin}\n{text}\n{end}{tail}")
+        docs_page.write_between_markers(args.docs, "fleet_doors", text)
 
 
 if __name__ == "__main__":

@@ -16,12 +16,13 @@ and `<!-- inclination_parts:end -->` in that file.
 import argparse
 import pathlib
 import platform
-import subprocess
 import sys
 
 import numpy as np
 
+import docs_page
 import rootfuse as rf
+from accuracy_peers import VQF_VERSION
 
 try:
     import vqf
@@ -75,10 +76,10 @@ def main(argv=None):
         rows.append((f.name[:2], cells))
         print(f"{f.name[:2]} done", file=sys.stderr)
     names = list(sums)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    commit = docs_page.commit()
     lines = [
         f"Inclination error, degrees, constant / varying / RMSE (6D, online). {platform.node()}, "
-        f"commit {commit}, `benches/python/inclination_parts.py`, vqf {getattr(vqf, '__version__', '?')}.",
+        f"commit {commit}, `benches/python/inclination_parts.py`, vqf {VQF_VERSION}.",
         "",
         "| trial | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),
@@ -91,11 +92,7 @@ def main(argv=None):
     text = "\n".join(lines)
     print(text)
     if a.docs:
-        page = pathlib.Path(a.docs).read_text()
-        begin, end = "<!-- inclination_parts:begin -->\n", "<!-- inclination_parts:end -->"
-        before, rest = page.split(begin)
-        _, after = rest.split(end)
-        pathlib.Path(a.docs).write_text(before + begin + text + "\n" + end + after)
+        docs_page.write_between_markers(a.docs, "inclination_parts", text)
 
 
 if __name__ == "__main__":

@@ -326,7 +326,15 @@ pub fn run_many<'py>(
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let prec = crate::filter::precision(precision)?;
-    let out = out.filter(|o| !o.is_none());
+    let out = match out.filter(|o| !o.is_none()) {
+        Some(o) => Some(o.cast::<PyDict>().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "out: expected a dict of arrays (keys quat, bias, covariance, flags), got {}",
+                type_name(o)
+            ))
+        })?),
+        None => None,
+    };
     let single = match out {
         Some(o) => out_dtype(py, o, dtype)?,
         None => series_dtype(py, dtype)?,
@@ -405,12 +413,9 @@ pub fn run_many<'py>(
 /// not two buffers over the same memory).
 fn check_out_memory(
     py: Python<'_>,
-    out: &Bound<'_, PyAny>,
+    out: &Bound<'_, PyDict>,
     inputs: &[Option<&Bound<'_, PyAny>>],
 ) -> PyResult<()> {
-    let Ok(out) = out.cast::<PyDict>() else {
-        return Ok(()); // `out_dtype` has named the type already
-    };
     let shares = py.import("numpy")?.getattr("may_share_memory")?;
     let items: Vec<(String, Bound<'_, PyAny>)> =
         out.iter().map(|(k, v)| (k.to_string(), v)).collect();
@@ -438,15 +443,9 @@ fn check_out_memory(
 /// given, must name.
 fn out_dtype(
     py: Python<'_>,
-    out: &Bound<'_, PyAny>,
+    out: &Bound<'_, PyDict>,
     dtype: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<bool> {
-    let out = out.cast::<PyDict>().map_err(|_| {
-        PyTypeError::new_err(format!(
-            "out: expected a dict of arrays (keys quat, bias, covariance, flags), got {}",
-            type_name(out)
-        ))
-    })?;
     let quat = out.get_item("quat")?.ok_or_else(|| {
         PyValueError::new_err("out: missing \"quat\": a (C, N, 4) float32 or float64 array")
     })?;
@@ -508,7 +507,7 @@ impl Series<'_, '_> {
     fn into_arrays<'py, E: SeriesFloat>(
         self,
         py: Python<'py>,
-        out: Option<&Bound<'py, PyAny>>,
+        out: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (count, columns) = (self.lens.len(), self.columns);
         // The outputs: one set of arrays for stacked input (each channel a contiguous part of

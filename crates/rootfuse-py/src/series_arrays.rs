@@ -56,11 +56,10 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
     /// The caller's arrays of `out` (see `run_many`), checked against the shapes `lead + [4]`
     /// etc. of the series asked for: nothing is written unless every one fits.
     pub(crate) fn given(
-        out: &Bound<'py, PyAny>,
+        out: &Bound<'py, PyDict>,
         lead: &[usize],
         columns: Columns,
     ) -> PyResult<Self> {
-        let out = out.cast::<PyDict>()?;
         for key in out.keys() {
             let key: String = key.extract().unwrap_or_default();
             let computed = match key.as_str() {
@@ -85,12 +84,8 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
             out: &Bound<'py, PyDict>,
             key: &str,
             shape: Vec<usize>,
-            wanted: bool,
             what: &str,
-        ) -> PyResult<Option<Bound<'py, PyArrayDyn<T>>>> {
-            if !wanted {
-                return Ok(None);
-            }
+        ) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
             let item = out.get_item(key)?.ok_or_else(|| {
                 PyValueError::new_err(format!(
                     "out: missing {key:?}: a {shape:?} {what} array (or pass {key}=False)"
@@ -119,7 +114,7 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
                     "out[{key:?}]: the array's memory is not aligned for {what}: give an array NumPy allocated (numpy.empty)"
                 )));
             }
-            Ok(Some(a.clone()))
+            Ok(a.clone())
         }
         let shape = |tail: &[usize]| -> Vec<usize> { lead.iter().chain(tail).copied().collect() };
         let float = if std::mem::size_of::<E>() == 4 {
@@ -128,10 +123,19 @@ impl<'py, E: SeriesFloat> SeriesArrays<'py, E> {
             "float64"
         };
         Ok(Self {
-            quat: array(out, "quat", shape(&[4]), true, float)?.expect("quat is always wanted"),
-            bias: array(out, "bias", shape(&[3]), columns.bias, float)?,
-            covariance: array(out, "covariance", shape(&[3, 3]), columns.covariance, float)?,
-            flags: array(out, "flags", shape(&[]), columns.flags, "uint8")?,
+            quat: array(out, "quat", shape(&[4]), float)?,
+            bias: columns
+                .bias
+                .then(|| array(out, "bias", shape(&[3]), float))
+                .transpose()?,
+            covariance: columns
+                .covariance
+                .then(|| array(out, "covariance", shape(&[3, 3]), float))
+                .transpose()?,
+            flags: columns
+                .flags
+                .then(|| array(out, "flags", shape(&[]), "uint8"))
+                .transpose()?,
         })
     }
 
