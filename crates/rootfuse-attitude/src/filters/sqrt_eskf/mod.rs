@@ -22,6 +22,8 @@ mod set_state;
 mod two_windows;
 // The 9D heading: the field test and the heading offset.
 mod heading;
+// The parameters converted to the filter's precision.
+mod coefficients;
 // Coefficients cached while the time step repeats.
 mod per_dt;
 use per_dt::{Cached, PerDt, PerHeading, PerInterval};
@@ -447,75 +449,6 @@ impl SqrtEskfParams {
             mag_update_every: 1.0,
             ..self.clone()
         }
-    }
-}
-
-impl<T: Lane> Coefficients<T> {
-    fn new(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {
-        Self {
-            gyr_noise: p.coef(|p| p.gyr_noise),
-            bias_walk: p.coef(|p| p.bias_walk),
-            bias_noise_every: p.coef(|p| p.bias_noise_every),
-            acc_update_every: p.coef(|p| p.acc_update_every),
-            mag_update_every: p.coef(|p| p.mag_update_every),
-            tau_acc: p.coef(|p| p.tau_acc),
-            tau_acc_long: p.coef(|p| p.tau_acc_long),
-            window_ratio: p.coef(|p| p.window_ratio),
-            acc_noise_rotation_share: p.coef(|p| p.acc_noise_rotation_share),
-            window_tau: p.coef(|p| p.window_tau),
-            acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
-            acc_gate: p.coef(|p| p.acc_gate),
-            acc_adapt_window: p.coef(|p| p.acc_adapt_window),
-            model_error_scale: p.coef(|p| p.model_error_scale),
-            model_error_window: p.coef(|p| p.model_error_window),
-            heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
-            gyr_scale_error: p.coef(|p| p.gyr_scale_error),
-            acc_excess_scale: p.coef(|p| p.acc_excess_scale),
-            acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
-            acc_reject_time: p.coef(|p| p.acc_reject_time),
-            startup_time: p.coef(|p| p.startup_time.max(1e-6)),
-            reacquire_std: p.coef(|p| p.reacquire_std),
-            rest_tau: p.coef(|p| p.rest_tau),
-            rest_gyr2: p.coef(|p| p.rest_gyr * p.rest_gyr),
-            rest_acc2: p.coef(|p| p.rest_acc * p.rest_acc),
-            rest_time: p.coef(|p| p.rest_time),
-            rest_var: p.coef(|p| p.rest_noise * p.rest_noise),
-            init_bias_std: p.coef(|p| p.init_bias_std),
-            init_tilt_std: p.coef(|p| p.init_tilt_std),
-            bias_step_window: p.coef(|p| p.bias_step_window),
-            bias_step_threshold: p.coef(|p| {
-                // White innovation of density acc_noise² averaged with time constant T has
-                // variance acc_noise²/(2T) per axis.
-                p.acc_noise * p.acc_noise / (2.0 * p.bias_step_window)
-                    * p.bias_step_gate
-                    * p.bias_step_gate
-            }),
-            heading_walk_var: p.coef(|p| p.heading_walk * p.heading_walk),
-            heading_rate_var: p.coef(|p| p.heading_rate_noise * p.heading_rate_noise),
-            heading_up_rate_var: p.coef(|p| p.heading_up_rate_noise * p.heading_up_rate_noise),
-            mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
-            mag_norm_th: p.coef(|p| p.mag_norm_th),
-            mag_dip_th: p.coef(|p| p.mag_dip_th),
-            mag_ref_tau: p.coef(|p| p.mag_ref_tau),
-            mag_lowpass_tau: p.coef(|p| p.mag_lowpass_tau),
-            mag_settle_time: p.coef(|p| p.mag_settle_time),
-            mag_azimuth_tau: p.coef(|p| p.mag_azimuth_tau),
-            mag_new_time: p.coef(|p| p.mag_new_time),
-            mag_reject_time: p.coef(|p| p.mag_reject_time),
-        }
-    }
-
-    /// The covariance factor right after initialisation.
-    fn initial_factor(&self) -> Mat<T, 6, 6> {
-        let mut s = Mat::zeros();
-        s.m[0][0] = self.init_tilt_std;
-        s.m[1][1] = self.init_tilt_std;
-        // The 6D heading error is unobservable: its variance only bookkeeps the drift.
-        s.m[2][2] = T::from_f64(0.1);
-        for i in 3..6 {
-            s.m[i][i] = self.init_bias_std;
-        }
-        s
     }
 }
 
