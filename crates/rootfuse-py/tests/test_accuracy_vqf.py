@@ -79,7 +79,7 @@ def test_broad_covariance_coverage(broad_dir):
     # of each trial skipped). Measured: 9D total 0.902, with a 0.5° floor for the optical
     # truth's own error 0.972 (the goal is 0.90-0.98; 0.897 with P alone on the heading,
     # heading_model_error_scale = 0), inclination with the floor 0.964; 6D total with the
-    # floor 0.968.
+    # floor 0.935 (its heading's variance grows from 0 at the start, init_heading_std).
     files = sorted(p for p in pathlib.Path(broad_dir).glob("*.csv") if p.name[:2].isdigit())
     assert len(files) == 14
     cover = {}
@@ -101,7 +101,7 @@ def test_broad_covariance_coverage(broad_dir):
     assert 0.89 <= mean[9, 0.0][0] <= 0.93, mean[9, 0.0]
     assert 0.95 <= mean[9, 0.5][0] <= 0.98, mean[9, 0.5]
     assert 0.95 <= mean[9, 0.5][1] <= 0.98, mean[9, 0.5]
-    assert 0.95 <= mean[6, 0.5][0] <= 0.98, mean[6, 0.5]
+    assert 0.92 <= mean[6, 0.5][0] <= 0.95, mean[6, 0.5]
 
 
 def test_broad_constant_tilt_of_the_long_window(broad_dir):

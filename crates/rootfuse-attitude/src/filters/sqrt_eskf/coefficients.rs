@@ -35,6 +35,7 @@ impl<T: Lane> Coefficients<T> {
             rest_var: p.coef(|p| p.rest_noise * p.rest_noise),
             init_bias_std: p.coef(|p| p.init_bias_std),
             init_tilt_std: p.coef(|p| p.init_tilt_std),
+            init_heading_std: p.coef(|p| p.init_heading_std),
             bias_step_window: p.coef(|p| p.bias_step_window),
             bias_step_threshold: p.coef(|p| {
                 // White innovation of density acc_noise² averaged with time constant T has
@@ -63,8 +64,9 @@ impl<T: Lane> Coefficients<T> {
         let mut s = Mat::zeros();
         s.m[0][0] = self.init_tilt_std;
         s.m[1][1] = self.init_tilt_std;
-        // The 6D heading error is unobservable: its variance only bookkeeps the drift.
-        s.m[2][2] = T::from_f64(0.1);
+        // The 6D heading error is unobservable: its variance bookkeeps the drift from the
+        // start.
+        s.m[2][2] = self.init_heading_std;
         for i in 3..6 {
             s.m[i][i] = self.init_bias_std;
         }
