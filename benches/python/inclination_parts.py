@@ -11,6 +11,12 @@ varying²` splits the RMSE: a constant tilt that two filters share is the sensor
 accelerometer offset or misalignment against the optical frame), one that differs is made by
 the filter. With `--docs` the table replaces the text between `<!-- inclination_parts:begin -->`
 and `<!-- inclination_parts:end -->` in that file.
+
+A second table scores the same estimates (the flagship's defaults and VQF online) against the
+optical truth taken a fraction of a sample earlier (`truth_earlier`): where both filters gain
+alike, the recording's IMU samples lag its optical truth by that much, which no estimator can
+tell from the IMU alone. It goes between `<!-- inclination_time_offset:begin -->` and
+`<!-- inclination_time_offset:end -->`.
 """
 
 import argparse
@@ -46,6 +52,52 @@ def parts(quat, rec, used):
     return constant, float(np.sqrt(max(rms ** 2 - constant ** 2, 0.0))), rms
 
 
+def truth_earlier(truth, shift):
+    """The truth `shift` samples earlier (N, 4): `truth[k - shift]`, a fractional shift by the
+    normalised linear interpolation of the two neighbours (sign-aligned); NaN (not counted by
+    the metrics) where that would precede the recording."""
+    whole = int(np.floor(shift))
+    frac = shift - whole
+
+    def back(n):
+        out = np.full_like(truth, np.nan)
+        out[n:] = truth[: len(truth) - n]
+        return out
+
+    a, b = back(whole), back(whole + 1)
+    b = b * np.sign(np.sum(a * b, axis=1, keepdims=True))
+    q = (1.0 - frac) * a + frac * b
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+TIME_SHIFTS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
+
+
+def time_offset_table(recs, est_by_trial, commit):
+    """Mean inclination RMSE of the flagship and VQF online against the truth shifted earlier
+    by each of `TIME_SHIFTS` samples (a markdown table)."""
+    names = ("flagship", "VQF online")
+    sums = {(n, s): [] for n in names for s in TIME_SHIFTS}
+    for rec, est in zip(recs, est_by_trial):
+        for s in TIME_SHIFTS:
+            shifted = dict(rec, truth=truth_earlier(rec["truth"], s))
+            for n in names:
+                sums[n, s].append(rf.rmse(est[n], shifted, dof=6)["inclination"])
+    dt_ms = 1e3 * float(np.median(np.diff(recs[0]["t"])))
+    lines = [
+        f"Mean inclination RMSE over the trials, degrees (6D, online), against the optical truth "
+        f"taken earlier. {platform.node()}, commit {commit}, `benches/python/inclination_parts.py`, "
+        f"vqf {VQF_VERSION}.",
+        "",
+        "| truth taken earlier by | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for s in TIME_SHIFTS:
+        cells = " | ".join(f"{np.mean(sums[n, s]):.3f}" for n in names)
+        lines.append(f"| {s:g} samples ({s * dt_ms:.2f} ms) | {cells} |")
+    return "\n".join(lines)
+
+
 def estimates(rec):
     t = rec["t"]
     dt = float(np.median(np.diff(t)))
@@ -65,10 +117,12 @@ def main(argv=None):
     files = sorted(f for f in pathlib.Path(a.broad).glob("*.csv") if f.name[:2].isdigit())
     if not files:
         sys.exit(f"no BROAD trials in {a.broad}")
-    rows, sums = [], {}
+    rows, sums, recs, ests = [], {}, [], []
     for f in files:
         rec = rf.read_csv(f)
         est = estimates(rec)
+        recs.append(rec)
+        ests.append(est)
         used = rf.error_series(est["flagship"], rec, dof=6)["used"]
         cells = {name: parts(q, rec, used) for name, q in est.items()}
         for name, c in cells.items():
@@ -91,8 +145,11 @@ def main(argv=None):
     lines.append("| **mean** | " + " | ".join(fmt(means[n]) for n in names) + " |")
     text = "\n".join(lines)
     print(text)
+    offset = time_offset_table(recs, ests, commit)
+    print(offset)
     if a.docs:
         docs_page.write_between_markers(a.docs, "inclination_parts", text)
+        docs_page.write_between_markers(a.docs, "inclination_time_offset", offset)
 
 
 if __name__ == "__main__":
