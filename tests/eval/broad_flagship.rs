@@ -225,10 +225,11 @@ fn model_error_makes_the_covariance_honest() {
     }
 }
 
-/// The 9D heading's model error (`heading_model_error_scale`) on BROAD: the estimates are bit
-/// for bit those of `P` alone, and the mean share of samples inside the 95 % ellipsoid, with
-/// the 0.5° floor for the optical truth's own error, rises from 0.897 to 0.972 (the issue asks
-/// 0.90–0.98; the other parameters the defaults): `P` alone stays short of 0.93. Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
+/// The 9D heading's model error (`heading_model_error_scale`, default 2) on BROAD: the
+/// estimates are bit for bit those of `P` alone, and the mean share of samples inside the 95 %
+/// ellipsoid, with the 0.5° floor for the optical truth's own error, rises from 0.897 to 0.973
+/// (0.972 at 1; the issue asks 0.90–0.98; the other parameters the defaults): `P` alone stays
+/// short of 0.93. Trial 27 (a phone's vibration motor beside the sensor) holds its 5–8° heading
 /// error outside the ellipsoid at every sample with `P` alone and inside with the model error.
 #[test]
 #[cfg_attr(
@@ -266,7 +267,8 @@ fn heading_model_error_covers_broad_with_the_floor() {
             .unwrap()
             .coverage_total
         };
-        let (modelled, alone) = (run(rec, 1.0), run(rec, 0.0));
+        let default = SqrtEskfParams::default().heading_model_error_scale;
+        let (modelled, alone) = (run(rec, default), run(rec, 0.0));
         assert!(
             same_bits(&modelled.0, &alone.0),
             "{}: estimates differ",
@@ -330,6 +332,43 @@ fn acceleration_excess_covers_the_vehicle() {
     assert!(
         with >= 0.92 && without < 0.5,
         "coverage {with:.3} with the acceleration excess, {without:.3} without"
+    );
+}
+
+/// The 9D heading's model error on the simulated vehicle with a disturbed field (seeds 0–4,
+/// 120 s at 100 Hz: its turns drift the heading by the gyroscope's 0.3 % scale factor while
+/// no field is adopted, which `P`'s white noise does not model): at the default scale (2) the
+/// 95 % ellipsoid holds the total error at 0.961 of the samples, at 1 (the mean square itself)
+/// at 0.921, short of the 0.93–0.97 the issue asks; estimates bit for bit the same.
+#[test]
+fn heading_model_error_covers_the_disturbed_vehicle() {
+    use rootfuse_eval::consistency::consistency;
+    let params = |scale: f64| SqrtEskfParams {
+        heading_model_error_scale: scale,
+        ..SqrtEskfParams::default()
+    };
+    let default = SqrtEskfParams::default().heading_model_error_scale;
+    let (mut with, mut at_one) = (0.0, 0.0);
+    for seed in 0..5 {
+        let rec = rootfuse_eval::sim::scenario("vehicle-disturbed", seed, 120.0, 100.0).unwrap();
+        let truth = rec.truth.as_ref().unwrap();
+        let ((q2, c2), (q1, c1)) = (
+            with_covariance(&rec, &params(default)),
+            with_covariance(&rec, &params(1.0)),
+        );
+        assert!(same_bits(&q2, &q1), "seed {seed}: estimates differ");
+        let cover = |q: &[_], c: &[_]| {
+            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
+                .unwrap()
+                .coverage_total
+        };
+        with += cover(&q2, &c2) / 5.0;
+        at_one += cover(&q1, &c1) / 5.0;
+    }
+    eprintln!("vehicle-disturbed total coverage {with:.3} (default), {at_one:.3} (1)");
+    assert!(
+        (0.93..=0.97).contains(&with) && at_one < 0.93,
+        "coverage {with:.3} at the default heading model error, {at_one:.3} at 1"
     );
 }
 
