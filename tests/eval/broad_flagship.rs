@@ -88,22 +88,42 @@ fn same_bits(a: &[rootfuse_attitude::Quat<f64>], b: &[rootfuse_attitude::Quat<f6
 /// `without`, whose estimates must be the same bit for bit: the mean inclination coverage of
 /// the 95 % ellipse that each reports (first 10 % skipped, no floor).
 fn simulated_coverage(name: &str, with: &SqrtEskfParams, without: &SqrtEskfParams) -> (f64, f64) {
+    let [with, without] = simulated_coverages(name, (3, 60.0), with, without);
+    (with.coverage_inclination, without.coverage_inclination)
+}
+
+/// [`simulated_coverage`] over `seeds` seeds of `seconds` each, both coverages (total and
+/// inclination) of each parameter set, means over the seeds.
+fn simulated_coverages(
+    name: &str,
+    (seeds, seconds): (u64, f64),
+    with: &SqrtEskfParams,
+    without: &SqrtEskfParams,
+) -> [Coverage; 2] {
     use rootfuse_eval::consistency::consistency;
-    let (mut a, mut b) = (0.0, 0.0);
-    for seed in 0..3 {
-        let rec = rootfuse_eval::sim::scenario(name, seed, 60.0, 100.0).unwrap();
+    let mut mean = [Coverage::default(); 2];
+    for seed in 0..seeds {
+        let rec = rootfuse_eval::sim::scenario(name, seed, seconds, 100.0).unwrap();
         let truth = rec.truth.as_ref().unwrap();
-        let ((q1, c1), (q0, c0)) = (with_covariance(&rec, with), with_covariance(&rec, without));
-        assert!(same_bits(&q1, &q0), "{name}: estimates differ");
-        let cover = |q: &[_], c: &[_]| {
-            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
-                .unwrap()
-                .coverage_inclination
-        };
-        a += cover(&q1, &c1) / 3.0;
-        b += cover(&q0, &c0) / 3.0;
+        let runs = [with_covariance(&rec, with), with_covariance(&rec, without)];
+        assert!(
+            same_bits(&runs[0].0, &runs[1].0),
+            "{name} seed {seed}: estimates differ"
+        );
+        for (m, (q, c)) in mean.iter_mut().zip(&runs) {
+            let r = consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1).unwrap();
+            m.coverage_total += r.coverage_total / seeds as f64;
+            m.coverage_inclination += r.coverage_inclination / seeds as f64;
+        }
     }
-    (a, b)
+    mean
+}
+
+/// Mean shares of samples inside the 95 % ellipsoid (total) and ellipse (inclination).
+#[derive(Clone, Copy, Default)]
+struct Coverage {
+    coverage_total: f64,
+    coverage_inclination: f64,
 }
 
 #[test]
@@ -342,29 +362,18 @@ fn acceleration_excess_covers_the_vehicle() {
 /// at 0.921, short of the 0.93–0.97 the issue asks; estimates bit for bit the same.
 #[test]
 fn heading_model_error_covers_the_disturbed_vehicle() {
-    use rootfuse_eval::consistency::consistency;
     let params = |scale: f64| SqrtEskfParams {
         heading_model_error_scale: scale,
         ..SqrtEskfParams::default()
     };
     let default = SqrtEskfParams::default().heading_model_error_scale;
-    let (mut with, mut at_one) = (0.0, 0.0);
-    for seed in 0..5 {
-        let rec = rootfuse_eval::sim::scenario("vehicle-disturbed", seed, 120.0, 100.0).unwrap();
-        let truth = rec.truth.as_ref().unwrap();
-        let ((q2, c2), (q1, c1)) = (
-            with_covariance(&rec, &params(default)),
-            with_covariance(&rec, &params(1.0)),
-        );
-        assert!(same_bits(&q2, &q1), "seed {seed}: estimates differ");
-        let cover = |q: &[_], c: &[_]| {
-            consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1)
-                .unwrap()
-                .coverage_total
-        };
-        with += cover(&q2, &c2) / 5.0;
-        at_one += cover(&q1, &c1) / 5.0;
-    }
+    let [with, at_one] = simulated_coverages(
+        "vehicle-disturbed",
+        (5, 120.0),
+        &params(default),
+        &params(1.0),
+    )
+    .map(|c| c.coverage_total);
     eprintln!("vehicle-disturbed total coverage {with:.3} (default), {at_one:.3} (1)");
     assert!(
         (0.93..=0.97).contains(&with) && at_one < 0.93,
