@@ -329,6 +329,47 @@ fn registry_names_and_errors() {
     }
 }
 
+/// The flagship's `init_heading_std` is report only: 6D and 9D estimates are those of another
+/// value to rounding (measured on BROAD: ≤ 4e-14 in f64), while the 6D heading variance
+/// starts at its square (0 by default) and grows from there.
+#[test]
+fn initial_heading_std_moves_only_the_report() {
+    use rootfuse_attitude::Dof;
+    use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
+    let (samples, _) = motion(40.0, Vec3::new(0.01, -0.02, 0.015), Quat::identity());
+    for dof in [Dof::Six, Dof::Nine] {
+        let make = |std: f64| {
+            SqrtEskf::<f64>::new(&SqrtEskfParams {
+                init_heading_std: std,
+                dof,
+                ..SqrtEskfParams::default()
+            })
+        };
+        let (mut zero, mut tenth) = (make(0.0), make(0.1));
+        let mut worst = 0.0_f64;
+        for (k, s) in samples.iter().enumerate() {
+            zero.update(s, 0.01);
+            tenth.update(s, 0.01);
+            let (a, b) = (zero.quat(), tenth.quat());
+            for d in [a.w - b.w, a.x - b.x, a.y - b.y, a.z - b.z] {
+                worst = worst.max(d.abs());
+            }
+            if k == 0 && dof == Dof::Six {
+                let (p0, p1) = (zero.attitude_covariance(), tenth.attitude_covariance());
+                let (h0, h1) = (
+                    p0.map_or(f64::NAN, |p| p.m[2][2]),
+                    p1.map_or(f64::NAN, |p| p.m[2][2]),
+                );
+                assert!(
+                    h0 < 1e-6 && h1 > 0.0099,
+                    "6D heading variance after one sample: {h0:e} / {h1:e}"
+                );
+            }
+        }
+        assert!(worst < 1e-9, "{dof:?}: estimates differ by {worst:e}");
+    }
+}
+
 /// Filters that carry a covariance report one that is symmetric positive semi-definite at
 /// every step and says what is observable: in 6D the heading variance ends far above the
 /// inclination variances (gravity carries no heading; it can shrink only through what is
