@@ -60,7 +60,7 @@
 //! | `gyro` | 160 | 264 | 152 |
 //! | `complementary` | 184 | 312 | 176 |
 //! | `mahony` | 200 | 344 | 190 |
-//! | `madgwick` | 180 | 304 | 172 |
+//! | `madgwick` | 192 | 328 | 184 |
 //! | `ekf` | 404 | 752 | 392 |
 //! | `sqrt-eskf` | 1016 | 1976 | 986 |
 //! | `complementary-reconstruction` | 340 | 624 | 328 |
