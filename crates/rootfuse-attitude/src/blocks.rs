@@ -67,19 +67,6 @@ pub fn turn_in_earth<T: Lane>(q: Quat<T>, phi: Vec3<T>) -> Quat<T> {
     times_exp(q, phi * T::from_f64(0.5), true)
 }
 
-/// [`turn_in_earth`] by `2·half_phi`, for a caller that folds the half into its gains: one
-/// multiply fewer where `half_phi` is on a dependency chain.
-#[inline]
-pub(crate) fn turn_in_earth_by_half<T: Lane>(q: Quat<T>, half_phi: Vec3<T>) -> Quat<T> {
-    times_exp(q, half_phi, true)
-}
-
-/// [`earth_turn`] of `2·half_phi` (see [`turn_in_earth_by_half`]).
-#[inline]
-pub(crate) fn earth_turn_by_half<T: Lane>(half_phi: Vec3<T>) -> Quat<T> {
-    series_exp(half_phi)
-}
-
 /// `q ⊗ exp(v)` (`earth` false) or `exp(v) ⊗ q` (`earth` true) for a pure `v`, as
 /// `q·cos a + (q ⊗ [0, v])·(sin a / a)` (or `[0, v] ⊗ q`), `q` renormalised by its own norm
 /// first (see [`integrate_gyro`]).
@@ -149,7 +136,7 @@ fn series_exp<T: Lane>(v: Vec3<T>) -> Quat<T> {
 /// [`GYRO_SERIES_A2`] (only the series where every lane is below it), [`Quat::exp`]'s
 /// coefficients elsewhere, each lane selecting by its own `a2`.
 #[inline(always)]
-fn exp_cos_sinc<T: Lane>(a2: T) -> (T, T) {
+pub(crate) fn exp_cos_sinc<T: Lane>(a2: T) -> (T, T) {
     let small = a2.simd_lt(T::from_f64(GYRO_SERIES_A2));
     if small.all() {
         gyro_series(a2)

@@ -5,8 +5,7 @@ use super::LaneParams;
 use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
 use super::{StateError, quat_without_covariance};
 use crate::blocks::{
-    LowPassGain, earth_turn_by_half, field_heading_error, gyro_increment, heading_field_ok,
-    integrate_gyro, turn_in_earth, turn_in_earth_by_half,
+    LowPassGain, exp_cos_sinc, field_heading_error, gyro_increment, heading_field_ok,
 };
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -33,9 +32,10 @@ params! {
 /// never tilt the inclination (unlike filters that feed the magnetometer into all axes).
 ///
 /// Within about 5.7° the correction angles come from series (`asin(s)/s` of the tilt,
-/// `atan(t)/t` of the heading, `t = h_x/h_y`), beyond from `atan2`; the sample's vectors are
-/// turned by the gyro step ([`gyro_increment`](crate::blocks::gyro_increment)) before the
-/// previous orientation rotates them, so only that rotation waits for the last update.
+/// `atan(t)/t` of the heading, `t = h_x/h_y`), beyond from `atan2`. Both corrections are
+/// measured in the frame the gyro step leaves and applied one after the other (the heading's
+/// field is not turned by the tilt correction first: the two differ by the tilt correction's
+/// angle, a fraction `dt/τ` of the tilt, times the heading's own gain).
 #[derive(Clone, Debug)]
 pub struct Complementary<T: Lane> {
     q: Quat<T>,
@@ -78,28 +78,38 @@ impl<T: Lane> Complementary<T> {
 /// there only the series is computed, otherwise each lane selects by its own tilt.
 #[inline]
 pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
+    tilt_correction_scaled(a_earth, T::one()).0
+}
+
+/// [`tilt_correction`] times `k` (a gain, folded into the series' coefficients where it is
+/// known before `a_earth`), and that vector's squared norm, `|a × up|²·(k·angle/sin)²`, formed
+/// from the parts rather than from the vector.
+#[inline]
+pub(crate) fn tilt_correction_scaled<T: Lane>(a_earth: Vec3<T>, k: T) -> (Vec3<T>, T) {
     // `a × up`, written out: the products with up's zeros change no value but the sign of a
     // zero, and would sit on the dependency chain.
     let axis = Vec3::new(a_earth.y, -a_earth.x, T::zero());
-    let s2 = a_earth.x.mul_add(a_earth.x, a_earth.y * a_earth.y);
+    let s2 = a_earth.x * a_earth.x + a_earth.y * a_earth.y;
     let near = s2.simd_lt(T::from_f64(TILT_SERIES_S2)) & a_earth.z.simd_gt(T::zero());
-    if near.all() {
-        return axis * asin_ratio_series(s2);
-    }
-    let s = s2.sqrt();
-    let angle = s.atan2(a_earth.z);
-    let small = s.simd_lt(T::from_f64(1e-4)) & a_earth.z.simd_gt(T::zero());
-    let exact = T::select(small, T::one(), angle / s);
-    axis * T::select(near, asin_ratio_series(s2), exact)
+    let ratio = if near.all() {
+        asin_ratio_series(s2, k)
+    } else {
+        let s = s2.sqrt();
+        let angle = s.atan2(a_earth.z);
+        let small = s.simd_lt(T::from_f64(1e-4)) & a_earth.z.simd_gt(T::zero());
+        let exact = T::select(small, T::one(), angle / s);
+        T::select(near, asin_ratio_series(s2, k), k * exact)
+    };
+    (axis * ratio, s2 * (ratio * ratio))
 }
 
 /// Below this `|a × up|²` (a tilt of about 5.7°) [`tilt_correction`] takes angle/sin from its
 /// series.
 const TILT_SERIES_S2: f64 = 0.01;
 
-/// `asin(s)/s = Σ C(2n, n)·s²ⁿ/(4ⁿ·(2n + 1))` at `s² < TILT_SERIES_S2`, by Horner in `s²`.
+/// `k·asin(s)/s = k·Σ C(2n, n)·s²ⁿ/(4ⁿ·(2n + 1))` at `s² < TILT_SERIES_S2`.
 #[inline(always)]
-fn asin_ratio_series<T: Lane>(s2: T) -> T {
+fn asin_ratio_series<T: Lane>(s2: T, k: T) -> T {
     ratio_series(
         s2,
         &[
@@ -112,13 +122,14 @@ fn asin_ratio_series<T: Lane>(s2: T) -> T {
             231.0 / 13312.0,
             143.0 / 10240.0,
         ],
+        k,
     )
 }
 
-/// `atan(t)/t = Σ (−1)ⁿ·t²ⁿ/(2n + 1)` at `t² < TILT_SERIES_S2` (the first dropped term below
-/// `6·10⁻¹⁸` in `f64`, `1.2·10⁻⁹` in `f32`), by Horner in `t²`.
+/// `k·atan(t)/t = k·Σ (−1)ⁿ·t²ⁿ/(2n + 1)` at `t² < TILT_SERIES_S2` (the first dropped term
+/// below `6·10⁻¹⁸` in `f64`, `1.2·10⁻⁹` in `f32`).
 #[inline(always)]
-fn atan_ratio_series<T: Lane>(t2: T) -> T {
+fn atan_ratio_series<T: Lane>(t2: T, k: T) -> T {
     ratio_series(
         t2,
         &[
@@ -131,71 +142,104 @@ fn atan_ratio_series<T: Lane>(t2: T) -> T {
             1.0 / 13.0,
             -1.0 / 15.0,
         ],
+        k,
     )
 }
 
-/// `Σ cₙ·x²ⁿ`: all eight coefficients in `f64`, the first four in `f32`.
+/// `k·Σ cₙ·x²ⁿ`: all eight coefficients in `f64`, the first four in `f32`, each times `k`
+/// (known before `x2`), by powers side by side (Estrin's scheme: the depth after `x2` grows
+/// with the logarithm of the term count, where Horner's nested chain grows with the count).
 #[inline(always)]
-fn ratio_series<T: Lane>(x2: T, coefficients: &[f64; 8]) -> T {
-    let terms = if core::mem::size_of::<T::Scalar>() == 8 {
-        8
+fn ratio_series<T: Lane>(x2: T, coefficients: &[f64; 8], k: T) -> T {
+    let c = |n: usize| k * T::from_f64(coefficients[n]);
+    let x4 = x2 * x2;
+    let low = (c(0) + c(1) * x2) + x4 * (c(2) + c(3) * x2);
+    if core::mem::size_of::<T::Scalar>() == 8 {
+        let high = (c(4) + c(5) * x2) + x4 * (c(6) + c(7) * x2);
+        low + (x4 * x4) * high
     } else {
-        4
-    };
-    let mut p = T::from_f64(coefficients[terms - 1]);
-    for &c in coefficients[..terms - 1].iter().rev() {
-        p = x2.mul_add(p, T::from_f64(c));
+        low
     }
-    p
 }
 
-/// [`field_heading_error`] of an earth-frame field `h`, `atan2(h_x, h_y)`, with the same mask;
-/// within about 5.7° of north (`h_y > 0`, `(h_x/h_y)² < 0.01`: every correction of a converged
-/// filter) from the series of `atan(t)/t`, `t = h_x/h_y`, with no `atan2` (a division and a
-/// longer polynomial); where every lane is there only the series is computed, otherwise each
-/// lane selects by its own `t`.
+/// [`field_heading_error`] of an earth-frame field `h`, `atan2(h_x, h_y)`, times `k`, with
+/// the same mask; within about 5.7° of north (`h_y > 0`, `(h_x/h_y)² < 0.01`: every
+/// correction of a converged filter) from the series of `atan(t)/t`, `t = h_x/h_y`, with no
+/// `atan2` (a division and a longer polynomial); where every lane is there only the series is
+/// computed, otherwise each lane selects by its own `t`.
 #[inline]
-fn heading_error<T: Lane>(h: Vec3<T>) -> (T, T::Mask) {
+fn heading_error<T: Lane>(h: Vec3<T>, k: T) -> (T, T::Mask) {
     let t = h.x / h.y;
     let t2 = t * t;
     let near = t2.simd_lt(T::from_f64(TILT_SERIES_S2)) & h.y.simd_gt(T::zero());
     if near.all() {
         let ok = heading_field_ok(h);
-        return (T::select(ok, t * atan_ratio_series(t2), T::zero()), ok);
+        return (T::select(ok, t * atan_ratio_series(t2, k), T::zero()), ok);
     }
     let (exact, ok) = field_heading_error(h);
-    (T::select(near & ok, t * atan_ratio_series(t2), exact), ok)
+    (
+        T::select(near & ok, t * atan_ratio_series(t2, k), k * exact),
+        ok,
+    )
+}
+
+/// `q0 ⊗ e`, each component's four products summed as a tree. Its norm is `|q0|`, within a few
+/// ulp of one (the last update's result); the caller renormalises the corrected result by
+/// `(3 − |q0|²)/2` (one Newton step of `1/|q0|`), off the path to the rotations.
+#[inline]
+fn propagate<T: Lane>(q0: Quat<T>, e: Quat<T>) -> Quat<T> {
+    let (a, b) = (q0, e);
+    Quat::new(
+        (a.w * b.w - a.x * b.x) - (a.y * b.y + a.z * b.z),
+        (a.w * b.x + a.x * b.w) + (a.y * b.z - a.z * b.y),
+        (a.w * b.y - a.x * b.z) + (a.y * b.w + a.z * b.x),
+        (a.w * b.z + a.x * b.y) + (a.z * b.w - a.y * b.x),
+    )
 }
 
 impl<T: Lane> OrientationFilter<T> for Complementary<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
-        let mut q = integrate_gyro(q0, s.gyr, s.dt);
-
-        // The corrections measure the sample's vectors in the earth frame of `q = q0 ⊗ e`, as
-        // `R(q0)·(R(e)·v)`: `R(e)·v` depends on the sample only, so the one rotation left on
-        // the dependency chain starts from `q0`, beside the propagation instead of after it
-        // (the same rotations, associated differently: equal to rounding).
+        // The corrections measure the sample's vectors in the earth frame of the propagated
+        // `q0 ⊗ e`, with the gains halved (the turns' half angles). Rotating by `q0` and by `e`
+        // separately would take the product off the dependency chain at the price of a
+        // rotation more per vector, which costs more than it saves (docs/flagship_cost.md).
         let e = gyro_increment(s.gyr, s.dt);
-        // Half the correction, the half folded into the gain (off the chain).
         let k_acc_half = self.k_acc.gain(s.dt) * T::from_f64(0.5);
-        let tilt_half = tilt_correction(q0.rotate(e.rotate(s.acc))) * k_acc_half;
-        q = Quat::select(s.acc_ok, turn_in_earth_by_half(q, tilt_half), q);
+        let propagated = propagate(q0, e);
+        let (tilt_half, a2) = tilt_correction_scaled(propagated.rotate(s.acc), k_acc_half);
+        // exp(φ/2) ⊗ q = q·cos a + ([0, φ/2] ⊗ q)·(sin a / a), a = |φ/2|.
+        let (cos, sinc) = exp_cos_sinc(a2);
+        let turned = propagated.pure_times(tilt_half);
+        // The renormalisation of `q0` (see `propagate`), folded into the turn's parts.
+        let f = T::from_f64(1.5) - T::from_f64(0.5) * q0.norm_squared();
+        let (cos, sinc) = (cos * f, sinc * f);
+        let tilted = Quat::new(
+            turned.w.mul_add(sinc, propagated.w * cos),
+            turned.x.mul_add(sinc, propagated.x * cos),
+            turned.y.mul_add(sinc, propagated.y * cos),
+            turned.z.mul_add(sinc, propagated.z * cos),
+        );
+        let mut q = Quat::select(s.acc_ok, tilted, propagated.scale(f));
 
         // 6D is the same for every lane and discards this correction: skipping it changes no bits.
         if self.nine_d {
-            // The field in the earth frame of the tilted `q`: turned by the tilt last, after
-            // the rotations that do not wait for it.
-            let h_gyro = q0.rotate(e.rotate(s.mag));
-            let h = Vec3::select(
-                s.acc_ok,
-                earth_turn_by_half(tilt_half).rotate(h_gyro),
-                h_gyro,
+            // The heading error is measured in the frame the gyro step left, before the tilt
+            // correction (its effect on the field's azimuth is the tilt correction's angle, a
+            // gain of order dt/τ times the tilt, times the gain of this one): the two
+            // corrections are measured side by side and applied one after the other.
+            let k_mag_half = self.k_mag.gain(s.dt) * T::from_f64(0.5);
+            let (psi_half, heading_ok) = heading_error(propagated.rotate(s.mag), k_mag_half);
+            // exp(ψ/2·ẑ) ⊗ q, the rotation's vector along earth-z only.
+            let (cos, sinc) = exp_cos_sinc(psi_half * psi_half);
+            let z = psi_half * sinc;
+            let q_mag = Quat::new(
+                cos * q.w - z * q.z,
+                cos * q.x - z * q.y,
+                cos * q.y + z * q.x,
+                cos * q.z + z * q.w,
             );
-            let (dpsi, heading_ok) = heading_error(h);
-            let k_mag = self.k_mag.gain(s.dt);
-            let q_mag = turn_in_earth(q, Vec3::new(T::zero(), T::zero(), dpsi * k_mag));
             q = Quat::select(s.mag_ok & heading_ok, q_mag, q);
         }
 
@@ -235,14 +279,20 @@ mod tests {
             let azimuth = (f64::from(i) / 2000.0 - 1.0) * 0.999 * core::f64::consts::PI;
             let h = field(azimuth);
             let exact = h.x.atan2(h.y);
-            let (e, ok) = heading_error(h);
+            let (e, ok) = heading_error(h, 1.0);
             assert!(
                 ok && (e - exact).abs() <= 4.0 * f64::EPSILON * exact.abs(),
                 "{azimuth}"
             );
+            // A gain folded into the series (or applied to atan2) scales the angle.
+            let (e, _) = heading_error(h, 0.3);
+            assert!(
+                (e - 0.3 * exact).abs() <= 8.0 * f64::EPSILON * exact.abs(),
+                "{azimuth}"
+            );
             let h32 = Vec3::new(h.x as f32, h.y as f32, h.z as f32);
             let exact32 = f64::from(h32.x).atan2(f64::from(h32.y));
-            let (e32, ok32) = heading_error(h32);
+            let (e32, ok32) = heading_error(h32, 1.0);
             let tol = 4.0 * f64::from(f32::EPSILON) * exact32.abs();
             assert!(ok32 && (f64::from(e32) - exact32).abs() <= tol, "{azimuth}");
         }
@@ -254,7 +304,7 @@ mod tests {
             Vec3::new(0.0, 0.01, -40.0),
             Vec3::new(0.0, f64::INFINITY, 0.0),
         ] {
-            assert_eq!(heading_error(h), (0.0, false), "{h:?}");
+            assert_eq!(heading_error(h, 1.0), (0.0, false), "{h:?}");
         }
     }
 
@@ -271,12 +321,31 @@ mod tests {
             f32x8::from(core::array::from_fn::<f32, 8, _>(|i| h32[i].y)),
             f32x8::from(core::array::from_fn::<f32, 8, _>(|i| h32[i].z)),
         );
-        let (e, _) = heading_error(lanes);
+        let (e, _) = heading_error(lanes, f32x8::splat(1.0));
         for (i, h) in h32.iter().enumerate() {
             assert_eq!(
                 e.extract(i).to_bits(),
-                heading_error(*h).0.to_bits(),
+                heading_error(*h, 1.0).0.to_bits(),
                 "lane {i}"
+            );
+        }
+    }
+
+    /// The scaled tilt correction is the gain times the correction (series and `atan2` paths
+    /// alike), with its squared norm formed from the parts.
+    #[test]
+    fn tilt_correction_scaled_is_the_gain_times_the_correction() {
+        for i in 0..200 {
+            let angle = f64::from(i) * 0.015;
+            let a = Vec3::new(0.3 * angle.sin(), -0.95 * angle.sin(), angle.cos());
+            let a = a * (1.0 / a.norm());
+            let full = tilt_correction(a);
+            let (scaled, norm2) = tilt_correction_scaled(a, 0.25);
+            let tol = 8.0 * f64::EPSILON * full.norm().max(1e-300);
+            assert!((scaled - full * 0.25).norm() <= tol, "{angle}");
+            assert!(
+                (norm2 - scaled.norm_squared()).abs() <= 8.0 * f64::EPSILON * norm2,
+                "{angle}"
             );
         }
     }

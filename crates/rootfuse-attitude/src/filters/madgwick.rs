@@ -318,7 +318,10 @@ mod tests {
             let q32 = Quat::new(0.6 * scale, 0.0, 0.8 * scale, 0.0);
             let n2 = q32.norm_squared();
             let unit = normalize_near_unit(q32, n2, 1.5 - 0.5 * n2);
-            assert!((f64::from(unit.norm()) - 1.0).abs() <= tol, "{scale}: {unit:?}");
+            assert!(
+                (f64::from(unit.norm()) - 1.0).abs() <= tol,
+                "{scale}: {unit:?}"
+            );
         }
         let lanes = Quat::new(
             f32x8::from([0.6, 0.6, 0.6, 0.78, 0.6, 0.6, 0.6, 0.6]),
