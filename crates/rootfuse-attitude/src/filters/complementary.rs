@@ -35,7 +35,8 @@ params! {
 /// `atan(t)/t` of the heading, `t = h_x/h_y`), beyond from `atan2`. Both corrections are
 /// measured in the frame the gyro step leaves and applied one after the other (the heading's
 /// field is not turned by the tilt correction first: the two differ by the tilt correction's
-/// angle, a fraction `dt/τ` of the tilt, times the heading's own gain).
+/// angle, a fraction `dt/τ` of the tilt, times the heading's own gain); the tilt is turned in
+/// the sensor frame (the same rotation: docs/methods.md).
 #[derive(Clone, Debug)]
 pub struct Complementary<T: Lane> {
     q: Quat<T>,
@@ -78,29 +79,28 @@ impl<T: Lane> Complementary<T> {
 /// there only the series is computed, otherwise each lane selects by its own tilt.
 #[inline]
 pub(crate) fn tilt_correction<T: Lane>(a_earth: Vec3<T>) -> Vec3<T> {
-    tilt_correction_scaled(a_earth, T::one()).0
-}
-
-/// [`tilt_correction`] times `k` (a gain, folded into the series' coefficients where it is
-/// known before `a_earth`), and that vector's squared norm, `|a × up|²·(k·angle/sin)²`, formed
-/// from the parts rather than from the vector.
-#[inline]
-pub(crate) fn tilt_correction_scaled<T: Lane>(a_earth: Vec3<T>, k: T) -> (Vec3<T>, T) {
     // `a × up`, written out: the products with up's zeros change no value but the sign of a
     // zero, and would sit on the dependency chain.
     let axis = Vec3::new(a_earth.y, -a_earth.x, T::zero());
     let s2 = a_earth.x * a_earth.x + a_earth.y * a_earth.y;
-    let near = s2.simd_lt(T::from_f64(TILT_SERIES_S2)) & a_earth.z.simd_gt(T::zero());
-    let ratio = if near.all() {
-        asin_ratio_series(s2, k)
-    } else {
-        let s = s2.sqrt();
-        let angle = s.atan2(a_earth.z);
-        let small = s.simd_lt(T::from_f64(1e-4)) & a_earth.z.simd_gt(T::zero());
-        let exact = T::select(small, T::one(), angle / s);
-        T::select(near, asin_ratio_series(s2, k), k * exact)
-    };
-    (axis * ratio, s2 * (ratio * ratio))
+    axis * tilt_ratio(s2, a_earth.z, T::one())
+}
+
+/// `k·angle/sin` of the angle between two unit vectors given the squared norm `s2` of their
+/// cross product and their dot product `cos`: from the series of `asin(s)/s` where
+/// `s2 < TILT_SERIES_S2` and `cos > 0` (in every lane: only the series), from `atan2`
+/// elsewhere (each lane by its own angle).
+#[inline(always)]
+fn tilt_ratio<T: Lane>(s2: T, cos: T, k: T) -> T {
+    let near = s2.simd_lt(T::from_f64(TILT_SERIES_S2)) & cos.simd_gt(T::zero());
+    if near.all() {
+        return asin_ratio_series(s2, k);
+    }
+    let s = s2.sqrt();
+    let angle = s.atan2(cos);
+    let small = s.simd_lt(T::from_f64(1e-4)) & cos.simd_gt(T::zero());
+    let exact = T::select(small, T::one(), angle / s);
+    T::select(near, asin_ratio_series(s2, k), k * exact)
 }
 
 /// Below this `|a × up|²` (a tilt of about 5.7°) [`tilt_correction`] takes angle/sin from its
@@ -208,10 +208,18 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
         let e = gyro_increment(s.gyr, s.dt);
         let k_acc_half = self.k_acc.gain(s.dt) * T::from_f64(0.5);
         let propagated = propagate(q0, e);
-        let (tilt_half, a2) = tilt_correction_scaled(propagated.rotate(s.acc), k_acc_half);
-        // exp(φ/2) ⊗ q = q·cos a + ([0, φ/2] ⊗ q)·(sin a / a), a = |φ/2|.
-        let (cos, sinc) = exp_cos_sinc(a2);
-        let turned = propagated.pure_times(tilt_half);
+        // The tilt correction in the sensor frame: the earth-frame rotation `exp(φ/2) ⊗ q`
+        // equals `q ⊗ exp(R(q)ᵀφ/2)`, and `R(q)ᵀ(a × up) = â × R(q)ᵀup` with the angle's sine
+        // and cosine unchanged, so up is brought into the sensor frame (the rotation matrix's
+        // third row) where the earth-frame form rotated the sample into the earth frame.
+        let up = propagated.up_in_sensor();
+        let axis = s.acc.cross(up);
+        let s2 = axis.norm_squared();
+        let ratio = tilt_ratio(s2, s.acc.dot(up), k_acc_half);
+        let tilt_half = axis * ratio;
+        // q ⊗ exp(φ/2) = q·cos a + (q ⊗ [0, φ/2])·(sin a / a), a = |φ/2|.
+        let (cos, sinc) = exp_cos_sinc(s2 * (ratio * ratio));
+        let turned = propagated.times_pure(tilt_half);
         // The renormalisation of `q0` (see `propagate`), folded into the turn's parts.
         let f = T::from_f64(1.5) - T::from_f64(0.5) * q0.norm_squared();
         let (cos, sinc) = (cos * f, sinc * f);
@@ -331,21 +339,26 @@ mod tests {
         }
     }
 
-    /// The scaled tilt correction is the gain times the correction (series and `atan2` paths
-    /// alike), with its squared norm formed from the parts.
+    /// The tilt correction in the sensor frame is the earth-frame one: `q ⊗ exp(φ_s/2)` with
+    /// `φ_s = k·(â × R(q)ᵀup)·angle/sin` equals `exp(φ/2) ⊗ q` with `φ` from
+    /// [`tilt_correction`] of `R(q)·â` times `k`, over tilts on both sides of the series'
+    /// limit.
     #[test]
-    fn tilt_correction_scaled_is_the_gain_times_the_correction() {
+    fn sensor_frame_tilt_is_the_earth_frame_tilt() {
+        let q = Quat::<f64>::from_euler_zyx(0.7, -0.4, 0.25);
         for i in 0..200 {
             let angle = f64::from(i) * 0.015;
-            let a = Vec3::new(0.3 * angle.sin(), -0.95 * angle.sin(), angle.cos());
-            let a = a * (1.0 / a.norm());
-            let full = tilt_correction(a);
-            let (scaled, norm2) = tilt_correction_scaled(a, 0.25);
-            let tol = 8.0 * f64::EPSILON * full.norm().max(1e-300);
-            assert!((scaled - full * 0.25).norm() <= tol, "{angle}");
+            let a_earth = Vec3::new(0.3 * angle.sin(), -0.95 * angle.sin(), angle.cos());
+            let a_earth = a_earth * (1.0 / a_earth.norm());
+            let acc = q.rotate_inverse(a_earth);
+            let earth = Quat::from_rotation_vector(tilt_correction(a_earth) * 0.25) * q;
+            let up = q.up_in_sensor();
+            let axis = acc.cross(up);
+            let ratio = tilt_ratio(axis.norm_squared(), acc.dot(up), 0.25);
+            let sensor = q * Quat::from_rotation_vector(axis * ratio);
             assert!(
-                (norm2 - scaled.norm_squared()).abs() <= 8.0 * f64::EPSILON * norm2,
-                "{angle}"
+                (earth - sensor).norm() < 1e-14,
+                "{angle}: {earth:?} vs {sensor:?}"
             );
         }
     }
