@@ -41,7 +41,8 @@ pub struct Madgwick<T: Lane> {
     /// sample with a usable field, through the orientation before it. One sample old, it is
     /// known before this sample's orientation, so its rotation and square root are off the
     /// dependency chain; it carries only the field's dip, which one sample's rotation changes
-    /// by no more than the tilt error the step corrects.
+    /// by no more than the tilt error the step corrects. `set_quat` keeps it (the next sample
+    /// with a field replaces it, as after any sample).
     d_y: T,
     d_z: T,
     /// Lanes whose `d_y`, `d_z` have been formed.
