@@ -201,10 +201,10 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
-        // The corrections measure the sample's vectors in the earth frame of the propagated
-        // `q0 ⊗ e`, with the gains halved (the turns' half angles). Rotating by `q0` and by `e`
-        // separately would take the product off the dependency chain at the price of a
-        // rotation more per vector, which costs more than it saves (docs/flagship_cost.md).
+        // Both corrections are measured against the propagated `q0 ⊗ e`, with the gains halved
+        // (the turns' half angles). Rotating the sample's vectors by `e` and then by `q0` would
+        // take the product off the dependency chain at the price of a rotation more per
+        // vector, which costs more than it saves (docs/flagship_cost.md).
         let e = gyro_increment(s.gyr, s.dt);
         let k_acc_half = self.k_acc.gain(s.dt) * T::from_f64(0.5);
         let propagated = propagate(q0, e);
