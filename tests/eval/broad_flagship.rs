@@ -93,7 +93,7 @@ fn simulated_coverage(name: &str, with: &SqrtEskfParams, without: &SqrtEskfParam
 }
 
 /// [`simulated_coverage`] over `seeds` seeds of `seconds` each, both coverages (total and
-/// inclination) of each parameter set, means over the seeds.
+/// inclination) of each parameter set, means over the seeds, scored as `with.dof` is.
 fn simulated_coverages(
     name: &str,
     (seeds, seconds): (u64, f64),
@@ -101,6 +101,11 @@ fn simulated_coverages(
     without: &SqrtEskfParams,
 ) -> [Coverage; 2] {
     use rootfuse_eval::consistency::consistency;
+    let align = if with.dof.uses_magnetometer() {
+        Alignment::NineD
+    } else {
+        Alignment::SixD
+    };
     let mut mean = [Coverage::default(); 2];
     for seed in 0..seeds {
         let rec = rootfuse_eval::sim::scenario(name, seed, seconds, 100.0).unwrap();
@@ -111,7 +116,7 @@ fn simulated_coverages(
             "{name} seed {seed}: estimates differ"
         );
         for (m, (q, c)) in mean.iter_mut().zip(&runs) {
-            let r = consistency(q, c, truth, None, Alignment::NineD, 0.0, 0.1).unwrap();
+            let r = consistency(q, c, truth, None, align, 0.0, 0.1).unwrap();
             m.coverage_total += r.coverage_total / seeds as f64;
             m.coverage_inclination += r.coverage_inclination / seeds as f64;
         }
@@ -226,6 +231,7 @@ fn model_error_makes_the_covariance_honest() {
     // The inclination innovation's term alone: no scale-factor or acceleration term beside it.
     let params = |scale: f64| SqrtEskfParams {
         model_error_scale: scale,
+        model_error_rotation_scale: scale,
         gyr_scale_error: 0.0,
         acc_excess_scale: 0.0,
         ..SqrtEskfParams::default()
@@ -243,6 +249,66 @@ fn model_error_makes_the_covariance_honest() {
             "{name}: coverage {with:.3} with the model error, {without:.3} without"
         );
     }
+}
+
+/// The defaults' reported covariance on the hard cases of issue #35 (seeds 0–4, 120 s at 100
+/// Hz, 6D and 9D with a disturbed field): the 95 % ellipse holds the inclination error at
+/// 0.93–0.97 of the samples on every one, and the ellipsoid the total error too, except the 6D
+/// vehicle's (measured 0.986: its heading's variance, grown from the gyroscope noise, is wider
+/// than its drift). With one model-error scale (`model_error_rotation_scale` =
+/// `model_error_scale`) the pendulum is above the band (0.98 inclination) while the handheld
+/// translation is at its lower edge; the estimates are bit for bit the same either way.
+/// `examples/flagship_coverage.rs` prints the table of docs/accuracy.md.
+#[test]
+fn coverage_in_the_band_on_the_hard_cases() {
+    let defaults = SqrtEskfParams::default();
+    let one_scale = SqrtEskfParams {
+        model_error_rotation_scale: defaults.model_error_scale,
+        ..defaults.clone()
+    };
+    let mut failures = Vec::new();
+    for name in [
+        "pendulum-6d",
+        "pendulum-disturbed",
+        "vehicle-6d",
+        "vehicle-disturbed",
+        "handheld-translation-6d",
+        "handheld-translation-disturbed",
+    ] {
+        let dof = if name.ends_with("-6d") {
+            Dof::Six
+        } else {
+            Dof::Nine
+        };
+        let with_dof = |p: &SqrtEskfParams| SqrtEskfParams { dof, ..p.clone() };
+        let [c, one] = simulated_coverages(
+            name,
+            (5, 120.0),
+            &with_dof(&defaults),
+            &with_dof(&one_scale),
+        );
+        eprintln!(
+            "{name}: total / inclination {:.3} / {:.3} (one scale {:.3} / {:.3})",
+            c.coverage_total, c.coverage_inclination, one.coverage_total, one.coverage_inclination
+        );
+        let band = 0.93..=0.97;
+        let total_max = if name == "vehicle-6d" { 0.99 } else { 0.97 };
+        if !band.contains(&c.coverage_inclination)
+            || !(0.93..=total_max).contains(&c.coverage_total)
+        {
+            failures.push(format!(
+                "{name}: {:.3} / {:.3}",
+                c.coverage_total, c.coverage_inclination
+            ));
+        }
+        if name.starts_with("pendulum") && one.coverage_inclination <= 0.97 {
+            failures.push(format!(
+                "{name}: one scale {:.3}, above the band before",
+                one.coverage_inclination
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
 }
 
 /// The 9D heading's model error (`heading_model_error_scale`, default 2) on BROAD: the

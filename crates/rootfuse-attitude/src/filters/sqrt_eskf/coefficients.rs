@@ -20,6 +20,8 @@ impl<T: Lane> Coefficients<T> {
             acc_gate: p.coef(|p| p.acc_gate),
             acc_adapt_window: p.coef(|p| p.acc_adapt_window),
             model_error_scale: p.coef(|p| p.model_error_scale),
+            model_error_rotation_scale: p.coef(|p| p.model_error_rotation_scale),
+            model_error_ratio: p.coef(|p| p.model_error_ratio),
             model_error_window: p.coef(|p| p.model_error_window),
             heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
             gyr_scale_error: p.coef(|p| p.gyr_scale_error),

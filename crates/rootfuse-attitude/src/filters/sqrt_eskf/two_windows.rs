@@ -181,6 +181,22 @@ impl<T: Lane> SqrtEskf<T> {
         }
     }
 
+    /// The scale of the reported inclination model error at this motion:
+    /// `model_error_scale` blended toward `model_error_rotation_scale` by `1/(1 + x⁴)`,
+    /// `x = translation / (model_error_ratio · rotation)` (the motion measures of
+    /// [`lowpass_long`](Self::lowpass_long)); `model_error_scale` in lanes with one window,
+    /// whose measures are not learned.
+    pub(super) fn model_error_scale_now(&self) -> T {
+        let c = &self.coef;
+        let w = &self.state.long;
+        let x = w.translation / (c.model_error_ratio * w.rotation);
+        let x2 = x * x;
+        let rotation_share = T::one() / (T::one() + x2 * x2);
+        let blended = c.model_error_scale
+            + (c.model_error_rotation_scale - c.model_error_scale) * rotation_share;
+        T::select(self.two_windows(), blended, c.model_error_scale)
+    }
+
     /// Weight of the long window, in `[0, 1]`: `x⁴ / (1 + x⁴)` of
     /// `x = translation / (window_ratio · rotation)`; zero in lanes with one window.
     pub(super) fn long_window_weight(&self) -> T {
