@@ -15,19 +15,9 @@ use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::{Dof, OrientationFilter, Quat, Recording};
 use rootfuse::eval::consistency::{UpperTriangle, consistency};
 use rootfuse::eval::metrics::Alignment;
-use rootfuse::eval::sim::scenario;
+use rootfuse::eval::sim::{HARD_CASES, scenario};
 use rootfuse::io::read_dir;
 use std::path::PathBuf;
-
-/// The simulated scenarios of issue #35, each in 6D and in 9D with a disturbed field.
-const SCENARIOS: [&str; 6] = [
-    "pendulum-6d",
-    "pendulum-disturbed",
-    "vehicle-6d",
-    "vehicle-disturbed",
-    "handheld-translation-6d",
-    "handheld-translation-disturbed",
-];
 
 /// The flagship over `rec` in `dof`: coverage total and inclination of its reported
 /// covariance, `floor_deg` added per axis.
@@ -119,7 +109,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut cells = Vec::new();
     let mut header = Vec::new();
-    for name in SCENARIOS {
+    for name in HARD_CASES {
         let dof = if name.ends_with("-6d") {
             Dof::Six
         } else {

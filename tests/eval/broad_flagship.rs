@@ -267,14 +267,7 @@ fn coverage_in_the_band_on_the_hard_cases() {
         ..defaults.clone()
     };
     let mut failures = Vec::new();
-    for name in [
-        "pendulum-6d",
-        "pendulum-disturbed",
-        "vehicle-6d",
-        "vehicle-disturbed",
-        "handheld-translation-6d",
-        "handheld-translation-disturbed",
-    ] {
+    for name in rootfuse_eval::sim::HARD_CASES {
         let dof = if name.ends_with("-6d") {
             Dof::Six
         } else {

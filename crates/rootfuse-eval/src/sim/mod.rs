@@ -35,7 +35,8 @@ pub mod sensor;
 pub mod trajectory;
 
 pub use scenario::{
-    SCENARIOS, scenario, scenario_batch, scenario_names, scenario_simulation, scenario_stream,
+    HARD_CASES, SCENARIOS, scenario, scenario_batch, scenario_names, scenario_simulation,
+    scenario_stream,
 };
 pub use sensor::{
     BiasStep, EarthField, Frame, IDENTITY, InertialSensor, MagDisturbance, Magnetometer, Mat3,

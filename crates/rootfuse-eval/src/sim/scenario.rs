@@ -109,6 +109,24 @@ pub const SCENARIOS: &[(&str, &str)] = &[
     ),
 ];
 
+/// The hard cases for inclination and for the reported covariance: a pendulum, a vehicle and a
+/// handheld translation, each without a magnetometer (`-6d`) and with a disturbed field
+/// (`-disturbed`, 9D). The accuracy tests and `benches/python/accuracy_peers.py` run VQF
+/// beside the flagship on them; docs/accuracy.md scores both there.
+///
+/// ```
+/// use rootfuse_eval::sim::{HARD_CASES, scenario_names};
+/// assert!(HARD_CASES.iter().all(|h| scenario_names().any(|n| n == *h)));
+/// ```
+pub const HARD_CASES: [&str; 6] = [
+    "pendulum-6d",
+    "pendulum-disturbed",
+    "vehicle-6d",
+    "vehicle-disturbed",
+    "handheld-translation-6d",
+    "handheld-translation-disturbed",
+];
+
 /// The preset names, in the order of [`SCENARIOS`].
 pub fn scenario_names() -> impl Iterator<Item = &'static str> {
     SCENARIOS.iter().map(|(n, _)| *n)
