@@ -62,7 +62,7 @@
 //! | `mahony` | 200 | 344 | 190 |
 //! | `madgwick` | 192 | 328 | 184 |
 //! | `ekf` | 404 | 752 | 392 |
-//! | `sqrt-eskf` | 1028 | 2000 | 996 |
+//! | `sqrt-eskf` | 1036 | 2016 | 1004 |
 //! | `complementary-reconstruction` | 340 | 624 | 328 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |
