@@ -30,8 +30,6 @@ import accuracy_peers as peers  # noqa: E402
 # (data set, "online" | "offline", "total" | "inclination") -> largest ratio flagship / VQF
 # allowed: the measured ratio (vqf 2.1.2, 5 seeds of 120 s, 100 Hz) plus about 2 %.
 KNOWN_BEHIND = {
-    ("pendulum-6d 6D", "offline", "total"): 1.026,
-    ("pendulum-disturbed 9D", "offline", "inclination"): 1.021,
     ("BROAD, 14 trials, 9D", "offline", "inclination"): 1.04,
     ("BROAD, 14 trials, 6D", "offline", "inclination"): 1.04,
 }

@@ -165,7 +165,7 @@ params! {
         /// Offline only: the smoother's fused estimate refined by the gyroscope with this time
         /// constant ([`OrientationFilter::smoothing_gyro_tau`](crate::OrientationFilter);
         /// 0 keeps it), so motion acceleration the passes let through above `1/(2π·τ)` goes.
-        smoothing_gyro_tau: f64 = 1.2, "s", [0.0, 1e3];
+        smoothing_gyro_tau: f64 = 1.4, "s", [0.0, 1e3];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted
