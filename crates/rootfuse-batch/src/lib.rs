@@ -57,25 +57,25 @@
 //!
 //! | filter | `f32x8` | `f64x4` | `X2<f32x8>` |
 //! |---|---|---|---|
-//! | `gyro` | 160 | 264 | 152 |
+//! | `gyro` | 156 | 264 | 150 |
 //! | `complementary` | 184 | 312 | 176 |
-//! | `mahony` | 200 | 344 | 190 |
+//! | `mahony` | 196 | 344 | 188 |
 //! | `madgwick` | 192 | 328 | 184 |
-//! | `ekf` | 404 | 752 | 392 |
+//! | `ekf` | 400 | 752 | 390 |
 //! | `sqrt-eskf` | 1036 | 2016 | 1004 |
-//! | `complementary-reconstruction` | 340 | 624 | 328 |
+//! | `complementary-reconstruction` | 336 | 624 | 326 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |
-//! | `ecf-ekf` | 1764 | 3400 | 1734 |
-//! | any filter as `AnyFilter<L>` | 1764 | | |
+//! | `ecf-ekf` | 1760 | 3400 | 1732 |
+//! | any filter as `AnyFilter<L>` | 1760 | | |
 //!
 //! (The workspace test `state_bytes_are_the_filters_own` checks this table.) So a run-time
-//! typed Mahony batch would cost 1764 B per channel (the size of the largest variant,
+//! typed Mahony batch would cost 1760 B per channel (the size of the largest variant,
 //! `ecf-ekf`); typed, it costs 196. Of those, 48 B are the six `u64` rejection counters
 //! (exact for any recording length, where an `f32` counter would stop at 2²⁴), 28 B the last
 //! sample's flags (seven masks), and about 56 B the chunk's masking state and padding sample,
 //! amortised over the lanes. Parameters are per-lane coefficients (so channels with
-//! different parameters share a chunk): the flagship's 32 cost 128 B per channel in `f32x8`;
+//! different parameters share a chunk): the flagship's 47 cost 188 B per channel in `f32x8`;
 //! the parameter set as given (`params()`, one per chunk) adds its size divided by the lanes.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and

@@ -2,7 +2,7 @@
 //! [`complementary`].
 
 use super::LaneParams;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use super::{StateError, quat_without_covariance};
 use crate::blocks::{
     LowPassGain, exp_cos_sinc, field_heading_error, gyro_increment, heading_field_ok,
@@ -45,7 +45,7 @@ pub struct Complementary<T: Lane> {
     k_acc: LowPassGain<T>,
     k_mag: LowPassGain<T>,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: ComplementaryParams,
 }
@@ -62,7 +62,7 @@ impl<T: Lane> Complementary<T> {
             k_acc: LowPassGain::new(p.coef(|p| p.tau_acc)),
             k_mag: LowPassGain::new(p.coef(|p| p.tau_mag)),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }

@@ -2,7 +2,7 @@
 
 use super::LaneParams;
 use super::complementary::tilt_correction;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::blocks::{acc_mag_quat, coning_rotation_vector};
 use crate::{ImuSample, Quat, Vec3};
@@ -89,7 +89,7 @@ pub struct ComplementaryReconstruction<T: Lane> {
     min_rate: T,
     min_acc: T,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: ComplementaryReconstructionParams,
 }
@@ -234,7 +234,7 @@ impl<T: Lane> ComplementaryReconstruction<T> {
             min_rate: p.coef(|p| p.min_static_rate),
             min_acc: p.coef(|p| p.min_static_acc),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }

@@ -3,7 +3,7 @@
 use super::LaneParams;
 use super::ekf::{State, set_bias_variance};
 use super::{
-    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
+    Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, mag_reference, params,
     up,
 };
 use super::{StateError, checked_bias, checked_sigma, quat_without_covariance};
@@ -90,7 +90,7 @@ pub struct EcfEkf<T: Lane> {
     bias_var: T,
     obs_var: T,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// `init_bias_std²`, rad²/s², for `reset`.
     init_bias_var: T,
@@ -118,7 +118,7 @@ impl<T: Lane> EcfEkf<T> {
             bias_var: p.coef(|p| p.bias_walk * p.bias_walk),
             obs_var: p.coef(|p| p.obs_noise * p.obs_noise),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             init_bias_var,
             params: p.first().clone(),

@@ -2,7 +2,7 @@
 
 use super::LaneParams;
 use super::{
-    Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, mag_reference, params,
+    Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, mag_reference, params,
     up,
 };
 use super::{StateError, checked_bias, checked_quat, checked_sigma};
@@ -52,7 +52,7 @@ pub struct Ekf<T: Lane> {
     acc_gate: T,
     gravity: T,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// `init_bias_std²`, rad²/s², for `reset`.
     init_bias_var: T,
@@ -79,7 +79,7 @@ impl<T: Lane> Ekf<T> {
             acc_gate: p.coef(|p| p.acc_gate * p.gravity),
             gravity: p.coef(|p| p.gravity),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             init_bias_var,
             params: p.first().clone(),

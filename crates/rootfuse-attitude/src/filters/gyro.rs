@@ -1,7 +1,7 @@
 //! Gyro-only integration [`gyro`].
 
 use super::LaneParams;
-use super::{OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use super::{StateError, quat_without_covariance};
 use crate::{ImuSample, Quat, blocks::integrate_gyro};
 use rootfuse_lane::{Lane, Mask};
@@ -20,7 +20,7 @@ params! {
 pub struct GyroIntegration<T: Lane> {
     q: Quat<T>,
     initialized: T::Mask,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: GyroParams,
 }
@@ -34,7 +34,7 @@ impl<T: Lane> GyroIntegration<T> {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(!params.first().init_from_acc),
-            limits: params.first().screen_limits(),
+            limits: params.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: params.first().clone(),
         }

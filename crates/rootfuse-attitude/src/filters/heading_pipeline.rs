@@ -2,7 +2,7 @@
 
 use super::LaneParams;
 use super::complementary::tilt_correction;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use super::{StateError, quat_without_covariance};
 use crate::blocks::{LowPassGain, integrate_gyro, true_heading_error};
 use crate::preprocess::{LowPass, MovingMean, MovingMedian, low_pass_factor};
@@ -141,7 +141,7 @@ pub struct HeadingPipeline<T: Lane> {
     coeff: T,
     declination: T,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// The low-pass factor of both pre-processing chains, for `reset`.
     lp_factor: T,
@@ -179,7 +179,7 @@ impl<T: Lane> HeadingPipeline<T> {
             coeff: p.coef(|p| p.coeff),
             declination: p.coef(|p| p.declination),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             lp_factor,
             params: p.first().clone(),

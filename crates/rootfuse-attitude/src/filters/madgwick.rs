@@ -1,7 +1,7 @@
 //! Madgwick's gradient-descent filter [`madgwick`].
 
 use super::LaneParams;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
 
@@ -53,7 +53,7 @@ pub struct Madgwick<T: Lane> {
     /// skipped (the same bits), which takes it off the dependency chain.
     zeta_off: bool,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: MadgwickParams,
 }
@@ -75,7 +75,7 @@ impl<T: Lane> Madgwick<T> {
             zeta: p.coef(|p| p.zeta),
             zeta_off: p.sets().iter().all(|set| set.zeta == 0.0),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }

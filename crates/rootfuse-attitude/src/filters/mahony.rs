@@ -1,7 +1,7 @@
 //! Mahony's explicit complementary filter [`mahony`].
 
 use super::LaneParams;
-use super::{Dof, OrientationFilter, Rejections, ScreenLimits, Screened, initialise, params};
+use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initialise, params};
 use crate::blocks::{heading_sine_times_previous, integrate_gyro};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -54,7 +54,7 @@ pub struct Mahony<T: Lane> {
     /// update's dependency chain).
     bias_gate2_quarter: T,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: MahonyParams,
 }
@@ -76,7 +76,7 @@ impl<T: Lane> Mahony<T> {
             max_bias2: p.coef(|p| p.max_bias * p.max_bias),
             bias_gate2_quarter: p.coef(|p| p.bias_gate * p.bias_gate / 4.0),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }

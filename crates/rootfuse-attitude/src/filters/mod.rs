@@ -120,7 +120,7 @@ pub use params::{
 #[cfg(feature = "std")]
 pub use params::{ParamError, Params};
 pub(crate) use params::{params, params_with_screening};
-pub use screen::{Rejections, SampleFlags, ScreenLimits, Screened};
+pub use screen::{Rejections, SampleFlags, ScreenBounds, ScreenLimits, Screened};
 pub use sqrt_eskf::{SqrtEskf, SqrtEskfParams};
 
 use crate::{ImuSample, Quat, Vec3};

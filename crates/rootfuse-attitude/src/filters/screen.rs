@@ -35,6 +35,52 @@ impl Default for ScreenLimits {
     }
 }
 
+impl ScreenLimits {
+    /// The limits in the precision of lane type `T`, squared where a squared norm is compared:
+    /// what a filter keeps, so that no sample converts them again.
+    pub fn bounds<T: Lane>(&self) -> ScreenBounds<T> {
+        let f = <T::Scalar as Lane>::from_f64;
+        ScreenBounds {
+            max_dt: f(self.max_dt),
+            max_gyr2: f(self.max_gyr * self.max_gyr),
+            max_acc2: f(self.max_acc * self.max_acc),
+            max_mag2: f(self.max_mag * self.max_mag),
+        }
+    }
+}
+
+/// [`ScreenLimits`] converted once to the precision of `T` (its scalar: one value for every
+/// lane), the magnitudes squared: the bounds [`Screened`] compares each sample with.
+///
+/// ```
+/// use rootfuse_attitude::filters::{ScreenBounds, ScreenLimits};
+/// let b: ScreenBounds<f32> = ScreenLimits::default().bounds();
+/// assert_eq!(b, ScreenLimits::default().bounds::<f32>());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScreenBounds<T: Lane> {
+    /// `max_dt`, s.
+    max_dt: T::Scalar,
+    /// `max_gyr²`, (rad/s)².
+    max_gyr2: T::Scalar,
+    /// `max_acc²`, (m/s²)².
+    max_acc2: T::Scalar,
+    /// `max_mag²`, squared input units.
+    max_mag2: T::Scalar,
+}
+
+impl<T: Lane> Default for ScreenBounds<T> {
+    fn default() -> Self {
+        ScreenLimits::default().bounds()
+    }
+}
+
+impl<T: Lane> From<&ScreenLimits> for ScreenBounds<T> {
+    fn from(limits: &ScreenLimits) -> Self {
+        limits.bounds()
+    }
+}
+
 /// What happened to the last sample, per lane: Fusion's per-update flags, for every filter.
 ///
 /// A whole-sample skip (`dt`, `gyr`) leaves the state untouched; a skipped correction
@@ -217,15 +263,15 @@ pub struct Screened<T: Lane> {
 }
 
 impl<T: Lane> Screened<T> {
-    /// Screens `sample` and counts the rejections.
+    /// Screens `sample` against `bounds` ([`ScreenLimits::bounds`]) and counts the rejections.
     #[inline]
     pub fn new(
         sample: &ImuSample<T>,
         dt: T,
-        limits: &ScreenLimits,
+        bounds: &ScreenBounds<T>,
         counts: &mut Rejections<T>,
     ) -> Self {
-        Self::screen(sample, dt, limits, counts, true)
+        Self::screen(sample, dt, bounds, counts, true)
     }
 
     /// The screening; `with_mag` false (the same for every lane) leaves the magnetometer
@@ -234,45 +280,45 @@ impl<T: Lane> Screened<T> {
     fn screen(
         sample: &ImuSample<T>,
         dt: T,
-        limits: &ScreenLimits,
+        bounds: &ScreenBounds<T>,
         counts: &mut Rejections<T>,
         with_mag: bool,
     ) -> Self {
         let zero = T::zero();
-        let dt_ok = dt.simd_gt(zero) & dt.simd_le(T::from_f64(limits.max_dt));
+        let dt_ok = dt.simd_gt(zero) & dt.simd_le(T::splat(bounds.max_dt));
         let g2 = sample.gyr.norm_squared();
-        let gyr_ok = g2.simd_le(T::from_f64(limits.max_gyr * limits.max_gyr));
+        let gyr_ok = g2.simd_le(T::splat(bounds.max_gyr2));
         let step = dt_ok & gyr_ok;
-        T::count(&mut counts.dt, !dt_ok);
-        T::count(&mut counts.gyr, dt_ok & !gyr_ok);
 
         // A sample beyond the physical limit is refused as a non-finite one is: with it the
         // direction would be right only by luck and any norm-based state (low-passes, rest and
         // disturbance detectors) would take in an absurd value. `≤` is false for NaN.
         let (acc, acc_dir_ok) = sample.acc.try_normalize();
-        let acc_unit_ok = acc_dir_ok
-            & sample
-                .acc
-                .norm_squared()
-                .simd_le(T::from_f64(limits.max_acc * limits.max_acc));
+        let acc_unit_ok = acc_dir_ok & sample.acc.norm_squared().simd_le(T::splat(bounds.max_acc2));
         let acc_ok = acc_unit_ok & step;
-        T::count(&mut counts.acc, step & !acc_unit_ok);
-        counts.last = SampleFlags {
-            dt: !dt_ok,
-            gyr: dt_ok & !gyr_ok,
-            acc: step & !acc_unit_ok,
-            ..SampleFlags::default()
+        // Almost every sample passes in every lane: one test of the mask every rejection
+        // clears stands for the three counts and their flags.
+        counts.last = if (!acc_ok).any() {
+            let flags: SampleFlags<T> = SampleFlags {
+                dt: !dt_ok,
+                gyr: dt_ok & !gyr_ok,
+                acc: step & !acc_unit_ok,
+                ..SampleFlags::default()
+            };
+            T::count(&mut counts.dt, flags.dt);
+            T::count(&mut counts.gyr, flags.gyr);
+            T::count(&mut counts.acc, flags.acc);
+            flags
+        } else {
+            SampleFlags::default()
         };
 
         let up = Vec3::new(zero, zero, T::one());
         let north = Vec3::new(zero, T::one(), zero);
         let (mag_ok, mag, mag_norm) = if with_mag {
             let (mag, mag_dir_ok) = sample.mag.try_normalize();
-            let mag_unit_ok = mag_dir_ok
-                & sample
-                    .mag
-                    .norm_squared()
-                    .simd_le(T::from_f64(limits.max_mag * limits.max_mag));
+            let mag_unit_ok =
+                mag_dir_ok & sample.mag.norm_squared().simd_le(T::splat(bounds.max_mag2));
             let mag_ok = mag_unit_ok & step;
             (
                 mag_ok,
@@ -301,11 +347,11 @@ impl<T: Lane> Screened<T> {
     pub fn for_dof(
         sample: &ImuSample<T>,
         dt: T,
-        limits: &ScreenLimits,
+        bounds: &ScreenBounds<T>,
         counts: &mut Rejections<T>,
         nine_d: bool,
     ) -> Self {
-        let s = Self::screen(sample, dt, limits, counts, nine_d);
+        let s = Self::screen(sample, dt, bounds, counts, nine_d);
         if nine_d {
             s.count_mag(counts);
         }

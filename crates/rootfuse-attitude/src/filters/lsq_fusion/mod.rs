@@ -9,7 +9,7 @@ pub use denoise::PolyDenoiser;
 pub use drift::{DriftConfig, DriftEstimator, DriftSample};
 
 use super::complementary::tilt_correction;
-use super::{Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, params};
+use super::{Dof, LaneParams, OrientationFilter, Rejections, ScreenBounds, Screened, params};
 use super::{StateError, bias_without_covariance, quat_without_covariance};
 use crate::blocks::{LowPassGain, acc_mag_quat};
 use crate::preprocess::{Hampel, LowPass, hampel_threshold, low_pass_factor};
@@ -127,7 +127,7 @@ pub struct LsqFusion<T: Lane> {
     inv_acc_dev: T,
     nine_d: bool,
     mag_drift_weight: T,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// Per-lane Hampel threshold and low-pass factor of the pre-processing, for `reset`.
     hampel_threshold: T,
@@ -208,7 +208,7 @@ impl<T: Lane> LsqFusion<T> {
                 let mag_ratio = positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.2);
                 mag_ratio * mag_ratio
             }),
-            limits: p.screen_limits(),
+            limits: p.screen_limits().bounds(),
             rejections: Rejections::default(),
             hampel_threshold,
             smooth_factor,

@@ -8,7 +8,7 @@
 
 use super::upper_factor::{add_diagonal_noise, carlson_apply, carlson_gains};
 use super::{
-    Dof, LaneParams, OrientationFilter, Rejections, ScreenLimits, Screened, lane_state, params,
+    Dof, LaneParams, OrientationFilter, Rejections, ScreenBounds, Screened, lane_state, params,
 };
 use crate::blocks::{STANDARD_GRAVITY, field_heading_error, lowpass_gain, tilt_from_acc};
 use crate::{ImuSample, Quat, Vec3};
@@ -686,7 +686,7 @@ pub struct SqrtEskf<T: Lane> {
     state: State<T>,
     coef: Coefficients<T>,
     nine_d: bool,
-    limits: ScreenLimits,
+    limits: ScreenBounds<T>,
     rejections: Rejections<T>,
     per_dt: Cached<T, PerDt<T>>,
     per_interval: Cached<T, PerInterval<T>>,
@@ -706,7 +706,7 @@ impl<T: Lane> SqrtEskf<T> {
             state: State::new(&coef),
             coef,
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits(),
+            limits: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             per_dt,
             per_interval: Cached::new(&coef),
