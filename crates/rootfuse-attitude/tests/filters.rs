@@ -375,8 +375,7 @@ fn initial_heading_std_moves_only_the_report() {
 /// inclination variances (gravity carries no heading; it can shrink only through what is
 /// learnt of the bias, never below what the gyro noise added); the magnetometer (9D) holds it
 /// lower and from growing over the second half (measured, 9D/6D heading variance at 40 s:
-/// 0.003 for ekf, 0.82 for sqrt-eskf, whose 6D heading variance starts at 0 and grows with
-/// `vertical_gyr_noise`, 0.0045 rad/√s, where it grew with 0.005 and the ratio was 0.69).
+/// 0.003 for ekf, 0.69 for sqrt-eskf, whose 6D heading variance starts at 0).
 #[test]
 fn attitude_covariance_says_what_is_observable() {
     let (samples, _) = motion(40.0, Vec3::new(0.01, -0.02, 0.015), Quat::identity());
@@ -423,7 +422,7 @@ fn attitude_covariance_says_what_is_observable() {
                 mid_heading_var[0], end_heading_var[0], mid_heading_var[1], end_heading_var[1]
             );
             assert!(
-                end_heading_var[1] < 0.9 * end_heading_var[0]
+                end_heading_var[1] < 0.8 * end_heading_var[0]
                     && end_heading_var[1] <= mid_heading_var[1],
                 "{what}: 9D {:?} vs 6D {:?} (20 s, 40 s)",
                 [mid_heading_var[1], end_heading_var[1]],

@@ -11,13 +11,6 @@ impl<T: Lane> Coefficients<T> {
             bias_noise_every: p.coef(|p| p.bias_noise_every),
             acc_update_every: p.coef(|p| p.acc_update_every),
             mag_update_every: p.coef(|p| p.mag_update_every),
-            vertical_gyr_noise: p.coef(|p| {
-                if p.dof.uses_magnetometer() {
-                    p.gyr_noise
-                } else {
-                    p.vertical_gyr_noise
-                }
-            }),
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),

@@ -33,16 +33,6 @@ params! {
     pub struct SqrtEskfParams {
         /// Attitude random-walk density driving `δθ` (gyro noise plus unmodelled errors).
         gyr_noise: f64 = 0.005, "rad/√s", [1e-9, 10.0];
-        /// 6D only: the attitude random-walk density about earth-up. Nothing observes a 6D
-        /// heading, so its variance is the drift's alone, and the inclination's unmodelled
-        /// errors that `gyr_noise` also stands for do not belong in it; no measurement row
-        /// touches the vertical axis, so only its reported variance changes (the estimates are
-        /// those of `gyr_noise` to rounding). 0.0045: the simulated vehicle's 6D total
-        /// coverage 0.986 → 0.968 (the band 0.93–0.97), BROAD's 6D with the 0.5° floor
-        /// 0.931 → 0.917 (its band 0.90–0.98; at 0.004 already 0.895), the other hard cases
-        /// unchanged (`docs/accuracy.md`). 9D keeps `gyr_noise` (its heading offset's variance
-        /// grows with what the time update adds about the vertical).
-        vertical_gyr_noise: f64 = 0.0045, "rad/√s", [1e-9, 10.0];
         /// Gyro-bias random-walk density.
         bias_walk: f64 = 1e-5, "rad/s/√s", [0.0, 10.0];
         /// The bias random walk's noise is folded into the covariance factor every this many
@@ -407,7 +397,6 @@ lane_state! {
         bias_noise_every: T,
         acc_update_every: T,
         mag_update_every: T,
-        vertical_gyr_noise: T,
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,

@@ -60,10 +60,8 @@ fn divisor<T: Lane>(time: T) -> T {
 /// The coefficients of one sample's time step `dt`.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PerDt<T: Lane> {
-    /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step; the
-    /// vertical axis's own `σ_θ·√dt` (6D: `vertical_gyr_noise`).
+    /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step.
     pub gyr_std: T,
-    pub vertical_std: T,
     pub bias_std: T,
     /// Per-sample measurement variances from the noise densities, `density²/dt`.
     pub r_acc: T,
@@ -103,7 +101,6 @@ impl<T: Lane> ForTime<T> for PerDt<T> {
         };
         Self {
             gyr_std: c.gyr_noise * sdt,
-            vertical_std: c.vertical_gyr_noise * sdt,
             bias_std: c.bias_walk * sdt,
             r_acc: c.acc_var / per_sample,
             r_rest: c.rest_var / per_sample,

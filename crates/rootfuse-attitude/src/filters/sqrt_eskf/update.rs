@@ -13,10 +13,9 @@ impl<T: Lane> SqrtEskf<T> {
     /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
     /// `F·S = [[A, B − dt·R·D], [0, D]]` is still upper triangular, so only `B` changes
     /// (`D` upper triangular: 18 products), and the diagonal process noise
-    /// `G·Q^½ = diag(σ_θ·√dt, σ_θ·√dt, σ_z·√dt, σ_b·√dt·I)` (the gyro's noise is isotropic in
-    /// the earth frame too, `R·Rᵀ = I`; `σ_z` is `vertical_gyr_noise` in 6D, `σ_θ` in 9D) is
-    /// folded in by [`add_diagonal_noise`], plus extra standard deviations on `δθ_x, δθ_y` and
-    /// on `δb` (start-up and re-acquisition).
+    /// `G·Q^½ = diag(σ_θ·√dt·I, σ_b·√dt·I)` (the earth-frame attitude noise is isotropic,
+    /// `R·Rᵀ = I`) is folded in by [`add_diagonal_noise`], plus extra standard deviations on
+    /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition).
     fn time_update(&mut self, r: &Mat<T, 3, 3>, dt: T, extra_tilt_std: T, extra_bias_std: T) {
         let s = &mut self.state.factor;
         for i in 0..3 {
@@ -29,7 +28,6 @@ impl<T: Lane> SqrtEskf<T> {
             }
         }
         let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
-        let qz = self.per_dt.vertical_std;
         // Re-acquisition noise is independent of the gyro noise: add it in quadrature (only
         // when a lane has some: `√(q²) = q` exactly, so skipping changes nothing).
         let (qt_xy, qb) =
@@ -55,13 +53,13 @@ impl<T: Lane> SqrtEskf<T> {
         if due.any() {
             let qb = T::select(pending.simd_eq(T::zero()), qb, (pending + qb * qb).sqrt());
             let mut all = *s;
-            add_diagonal_noise(&mut all, &[qt_xy, qt_xy, qz, qb, qb, qb]);
+            add_diagonal_noise(&mut all, &[qt_xy, qt_xy, qt, qb, qb, qb]);
             if !due.all() {
-                add_diagonal_noise(s, &[qt_xy, qt_xy, qz]);
+                add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
             }
             *s = Mat::select(due, &all, s);
         } else {
-            add_diagonal_noise(s, &[qt_xy, qt_xy, qz]);
+            add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
         }
         self.state.bias_noise_pending = T::select(due, T::zero(), pending + qb * qb);
     }
