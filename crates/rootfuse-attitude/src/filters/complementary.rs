@@ -45,7 +45,7 @@ pub struct Complementary<T: Lane> {
     k_acc: LowPassGain<T>,
     k_mag: LowPassGain<T>,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: ComplementaryParams,
 }
@@ -62,7 +62,7 @@ impl<T: Lane> Complementary<T> {
             k_acc: LowPassGain::new(p.coef(|p| p.tau_acc)),
             k_mag: LowPassGain::new(p.coef(|p| p.tau_mag)),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }
@@ -199,7 +199,7 @@ fn propagate<T: Lane>(q0: Quat<T>, e: Quat<T>) -> Quat<T> {
 
 impl<T: Lane> OrientationFilter<T> for Complementary<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
         // Both corrections are measured against the propagated `q0 ⊗ e`, with the gains halved
         // (the turns' half angles). Rotating the sample's vectors by `e` and then by `q0` would

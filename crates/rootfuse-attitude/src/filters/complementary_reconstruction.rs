@@ -89,7 +89,7 @@ pub struct ComplementaryReconstruction<T: Lane> {
     min_rate: T,
     min_acc: T,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: ComplementaryReconstructionParams,
 }
@@ -234,7 +234,7 @@ impl<T: Lane> ComplementaryReconstruction<T> {
             min_rate: p.coef(|p| p.min_static_rate),
             min_acc: p.coef(|p| p.min_static_acc),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }
@@ -278,7 +278,7 @@ impl<T: Lane> ComplementaryReconstruction<T> {
 
 impl<T: Lane> OrientationFilter<T> for ComplementaryReconstruction<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let acc_raw = s.acc * s.acc_norm;
         let still = self.still.elapsed.simd_lt(self.still_s) & s.step;
         // Uniform across lanes, so results are unchanged: after the still period skip the work.

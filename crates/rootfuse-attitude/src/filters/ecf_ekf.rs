@@ -90,7 +90,7 @@ pub struct EcfEkf<T: Lane> {
     bias_var: T,
     obs_var: T,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// `init_bias_std²`, rad²/s², for `reset`.
     init_bias_var: T,
@@ -118,7 +118,7 @@ impl<T: Lane> EcfEkf<T> {
             bias_var: p.coef(|p| p.bias_walk * p.bias_walk),
             obs_var: p.coef(|p| p.obs_noise * p.obs_noise),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             init_bias_var,
             params: p.first().clone(),
@@ -176,10 +176,10 @@ impl<T: Lane> EcfEkf<T> {
 
 impl<T: Lane> OrientationFilter<T> for EcfEkf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let raw = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let raw = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let smoothed = self.smooth(sample, &raw);
         let mut scratch = Rejections::default();
-        let mut s = Screened::for_dof(&smoothed, dt, &self.limits, &mut scratch, self.nine_d);
+        let mut s = Screened::for_dof(&smoothed, dt, &self.bounds, &mut scratch, self.nine_d);
         s.step = raw.step;
         s.dt = raw.dt;
         s.gyr = Vec3::select(raw.step, s.gyr, Vec3::zero());

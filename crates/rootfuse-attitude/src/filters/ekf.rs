@@ -52,7 +52,7 @@ pub struct Ekf<T: Lane> {
     acc_gate: T,
     gravity: T,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// `init_bias_std²`, rad²/s², for `reset`.
     init_bias_var: T,
@@ -79,7 +79,7 @@ impl<T: Lane> Ekf<T> {
             acc_gate: p.coef(|p| p.acc_gate * p.gravity),
             gravity: p.coef(|p| p.gravity),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             init_bias_var,
             params: p.first().clone(),
@@ -140,7 +140,7 @@ impl<T: Lane> Ekf<T> {
 
 impl<T: Lane> OrientationFilter<T> for Ekf<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let (q_prev, b_prev, p_prev) = (self.q, self.bias, self.p);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 

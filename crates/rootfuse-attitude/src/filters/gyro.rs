@@ -20,7 +20,7 @@ params! {
 pub struct GyroIntegration<T: Lane> {
     q: Quat<T>,
     initialized: T::Mask,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: GyroParams,
 }
@@ -34,7 +34,7 @@ impl<T: Lane> GyroIntegration<T> {
         Self {
             q: Quat::identity(),
             initialized: <T::Mask as Mask>::splat(!params.first().init_from_acc),
-            limits: params.first().screen_limits().bounds(),
+            bounds: params.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: params.first().clone(),
         }
@@ -43,7 +43,7 @@ impl<T: Lane> GyroIntegration<T> {
 
 impl<T: Lane> OrientationFilter<T> for GyroIntegration<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::new(sample, dt, &self.limits, &mut self.rejections);
+        let s = Screened::new(sample, dt, &self.bounds, &mut self.rejections);
         let q = initialise(self.q, &mut self.initialized, &s, false);
         self.q = Quat::select(s.step, integrate_gyro(q, s.gyr, s.dt), self.q);
     }

@@ -141,7 +141,7 @@ pub struct HeadingPipeline<T: Lane> {
     coeff: T,
     declination: T,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// The low-pass factor of both pre-processing chains, for `reset`.
     lp_factor: T,
@@ -179,7 +179,7 @@ impl<T: Lane> HeadingPipeline<T> {
             coeff: p.coef(|p| p.coeff),
             declination: p.coef(|p| p.declination),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             lp_factor,
             params: p.first().clone(),
@@ -201,7 +201,7 @@ impl<T: Lane> HeadingPipeline<T> {
 
 impl<T: Lane> OrientationFilter<T> for HeadingPipeline<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let was = self.initialized;
         let mut q0 = initialise(self.q, &mut self.initialized, &s, self.nine_d);
         let fresh = self.initialized & !was;

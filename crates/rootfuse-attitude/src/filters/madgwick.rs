@@ -53,7 +53,7 @@ pub struct Madgwick<T: Lane> {
     /// skipped (the same bits), which takes it off the dependency chain.
     zeta_off: bool,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: MadgwickParams,
 }
@@ -75,7 +75,7 @@ impl<T: Lane> Madgwick<T> {
             zeta: p.coef(|p| p.zeta),
             zeta_off: p.sets().iter().all(|set| set.zeta == 0.0),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }
@@ -167,7 +167,7 @@ fn normalize_near_unit<T: Lane>(q_raw: Quat<T>, n2: T, newton_factor: T) -> Quat
 
 impl<T: Lane> OrientationFilter<T> for Madgwick<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
         let u_acc = Vec3::select(s.acc_ok, s.acc, Vec3::zero());

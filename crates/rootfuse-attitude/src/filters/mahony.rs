@@ -54,7 +54,7 @@ pub struct Mahony<T: Lane> {
     /// update's dependency chain).
     bias_gate2_quarter: T,
     nine_d: bool,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     params: MahonyParams,
 }
@@ -76,7 +76,7 @@ impl<T: Lane> Mahony<T> {
             max_bias2: p.coef(|p| p.max_bias * p.max_bias),
             bias_gate2_quarter: p.coef(|p| p.bias_gate * p.bias_gate / 4.0),
             nine_d: p.first().dof.uses_magnetometer(),
-            limits: p.first().screen_limits().bounds(),
+            bounds: p.first().screen_limits().bounds(),
             rejections: Rejections::default(),
             params: p.first().clone(),
         }
@@ -85,7 +85,7 @@ impl<T: Lane> Mahony<T> {
 
 impl<T: Lane> OrientationFilter<T> for Mahony<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let q = initialise(self.q, &mut self.initialized, &s, self.nine_d);
 
         // The error is formed halved, `e/2 = â × v̂/2 + Δψ/2·v̂`, and the factor two folded into

@@ -53,9 +53,14 @@ impl ScreenLimits {
 /// lane), the magnitudes squared: the bounds [`Screened`] compares each sample with.
 ///
 /// ```
-/// use rootfuse_attitude::filters::{ScreenBounds, ScreenLimits};
-/// let b: ScreenBounds<f32> = ScreenLimits::default().bounds();
-/// assert_eq!(b, ScreenLimits::default().bounds::<f32>());
+/// use rootfuse_attitude::filters::{Rejections, ScreenLimits, Screened};
+/// use rootfuse_attitude::{ImuSample, Vec3};
+/// let bounds = ScreenLimits::default().bounds::<f64>();
+/// let mut counts = Rejections::<f64>::default();
+/// // 40 rad/s is beyond `max_gyr` (35 rad/s): the whole sample is skipped and counted.
+/// let spin = ImuSample::new(Vec3::new(0.0, 0.0, 40.0), Vec3::new(0.0, 0.0, 9.81), Vec3::zero());
+/// let s = Screened::new(&spin, 0.01, &bounds, &mut counts);
+/// assert!(!s.step && counts.gyr[0] == 1 && counts.last.gyr);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScreenBounds<T: Lane> {

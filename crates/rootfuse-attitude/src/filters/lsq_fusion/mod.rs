@@ -127,7 +127,7 @@ pub struct LsqFusion<T: Lane> {
     inv_acc_dev: T,
     nine_d: bool,
     mag_drift_weight: T,
-    limits: ScreenBounds<T>,
+    bounds: ScreenBounds<T>,
     rejections: Rejections<T>,
     /// Per-lane Hampel threshold and low-pass factor of the pre-processing, for `reset`.
     hampel_threshold: T,
@@ -208,7 +208,7 @@ impl<T: Lane> LsqFusion<T> {
                 let mag_ratio = positive(p.drift_noise, 0.005) / positive(p.drift_mag_noise, 0.2);
                 mag_ratio * mag_ratio
             }),
-            limits: p.screen_limits().bounds(),
+            bounds: p.screen_limits().bounds(),
             rejections: Rejections::default(),
             hampel_threshold,
             smooth_factor,
@@ -230,7 +230,7 @@ fn right_mul_matrix<T: Lane>(p: Quat<T>) -> Mat<T, 4, 4> {
 
 impl<T: Lane> OrientationFilter<T> for LsqFusion<T> {
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         let zero = T::zero();
         let one = T::one();
 

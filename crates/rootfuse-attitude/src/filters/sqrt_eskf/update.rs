@@ -530,7 +530,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         self.params.smoothing_gyro_tau
     }
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
-        let mut s = Screened::for_dof(sample, dt, &self.limits, &mut self.rejections, self.nine_d);
+        let mut s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
         // A spike is an unusable accelerometer sample from here on: every low-pass, detector
         // and correction below takes the accelerometer only where `acc_ok`.
         let (spike, translation2) = self.acc_spike(&s);
