@@ -13,7 +13,7 @@
 //! where it is missing).
 use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::{Dof, OrientationFilter, Quat, Recording};
-use rootfuse::eval::consistency::{UpperTriangle, consistency};
+use rootfuse::eval::consistency::{UpperTriangle, consistency, upper_triangle};
 use rootfuse::eval::metrics::Alignment;
 use rootfuse::eval::sim::{HARD_CASES, scenario};
 use rootfuse::io::read_dir;
@@ -37,9 +37,7 @@ fn coverage(
         let a = f
             .attitude_covariance()
             .ok_or("the flagship reports a covariance")?;
-        cov.push([
-            a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
-        ]);
+        cov.push(upper_triangle(&a));
     }
     let truth = rec.truth.as_ref().ok_or("a recording with truth")?;
     let align = if dof.uses_magnetometer() {

@@ -356,9 +356,7 @@ fn covariance_and_flags_equal_scalar_runs() {
                     match f.attitude_covariance() {
                         None => assert!(o.covariance.is_empty(), "{what}"),
                         Some(p) => {
-                            let want = [
-                                p.m[0][0], p.m[0][1], p.m[0][2], p.m[1][1], p.m[1][2], p.m[2][2],
-                            ];
+                            let want = rootfuse_eval::consistency::upper_triangle(&p);
                             let same = want
                                 .iter()
                                 .zip(&o.covariance[k])

@@ -69,9 +69,7 @@ fn with_covariance(
         f.update(&rec.sample(i), rec.dt(i));
         q.push(f.quat());
         let a = f.attitude_covariance().expect("the flagship carries one");
-        cov.push([
-            a.m[0][0], a.m[0][1], a.m[0][2], a.m[1][1], a.m[1][2], a.m[2][2],
-        ]);
+        cov.push(rootfuse_eval::consistency::upper_triangle(&a));
     }
     (q, cov)
 }

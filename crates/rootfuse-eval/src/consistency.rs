@@ -48,6 +48,20 @@ pub struct Consistency {
 /// `[p_xx, p_xy, p_xz, p_yy, p_yz, p_zz]` (the columns `rootfuse run --covariance` writes).
 pub type UpperTriangle = [f64; 6];
 
+/// The [`UpperTriangle`] of a filter's attitude covariance
+/// ([`OrientationFilter::attitude_covariance`](rootfuse_attitude::OrientationFilter), rad²).
+///
+/// ```
+/// use rootfuse_attitude::Mat;
+/// use rootfuse_eval::consistency::upper_triangle;
+/// let p = Mat::<f64, 3, 3>::from_fn(|i, j| (3 * i + j) as f64);
+/// assert_eq!(upper_triangle(&p), [0.0, 1.0, 2.0, 4.0, 5.0, 8.0]);
+/// ```
+pub fn upper_triangle(p: &rootfuse_attitude::Mat<f64, 3, 3>) -> UpperTriangle {
+    let m = &p.m;
+    [m[0][0], m[0][1], m[0][2], m[1][1], m[1][2], m[2][2]]
+}
+
 /// NEES and coverage of estimates `est` with covariances `cov` against `truth` (see the
 /// [module docs](self)); `floor_rad` the reference-error floor per axis, `skip` the leading
 /// share of samples left out (0.1 in `rootfuse eval --consistency`).

@@ -74,18 +74,6 @@ pub struct ScreenBounds<T: Lane> {
     max_mag2: T::Scalar,
 }
 
-impl<T: Lane> Default for ScreenBounds<T> {
-    fn default() -> Self {
-        ScreenLimits::default().bounds()
-    }
-}
-
-impl<T: Lane> From<&ScreenLimits> for ScreenBounds<T> {
-    fn from(limits: &ScreenLimits) -> Self {
-        limits.bounds()
-    }
-}
-
 /// What happened to the last sample, per lane: Fusion's per-update flags, for every filter.
 ///
 /// A whole-sample skip (`dt`, `gyr`) leaves the state untouched; a skipped correction

@@ -188,22 +188,26 @@ impl<T: Lane> SqrtEskf<T> {
     /// whose measures are not learned.
     pub(super) fn model_error_scale_now(&self) -> T {
         let c = &self.coef;
-        let w = &self.state.long;
-        let x = w.translation / (c.model_error_ratio * w.rotation);
-        let x2 = x * x;
-        let rotation_share = T::one() / (T::one() + x2 * x2);
+        let rotation_share = T::one() / (T::one() + self.motion_ratio4(c.model_error_ratio));
         let blended = c.model_error_scale
             + (c.model_error_rotation_scale - c.model_error_scale) * rotation_share;
         T::select(self.two_windows(), blended, c.model_error_scale)
     }
 
+    /// `x⁴` of `x = translation / (ratio · rotation)`, the long window's motion measures
+    /// against a ratio in m/s: what both the window's weight and the model error's scale
+    /// follow.
+    fn motion_ratio4(&self, ratio: T) -> T {
+        let w = &self.state.long;
+        let x = w.translation / (ratio * w.rotation);
+        let x2 = x * x;
+        x2 * x2
+    }
+
     /// Weight of the long window, in `[0, 1]`: `x⁴ / (1 + x⁴)` of
     /// `x = translation / (window_ratio · rotation)`; zero in lanes with one window.
     pub(super) fn long_window_weight(&self) -> T {
-        let w = &self.state.long;
-        let x = w.translation / (self.coef.window_ratio * w.rotation);
-        let x2 = x * x;
-        let x4 = x2 * x2;
+        let x4 = self.motion_ratio4(self.coef.window_ratio);
         T::select(self.two_windows(), x4 / (T::one() + x4), T::zero())
     }
 }
