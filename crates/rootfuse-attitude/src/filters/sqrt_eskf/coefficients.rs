@@ -56,6 +56,7 @@ impl<T: Lane> Coefficients<T> {
             mag_lowpass_tau: p.coef(|p| p.mag_lowpass_tau),
             mag_settle_time: p.coef(|p| p.mag_settle_time),
             mag_azimuth_tau: p.coef(|p| p.mag_azimuth_tau),
+            adopted_field_error_scale: p.coef(|p| p.adopted_field_error_scale),
             mag_new_time: p.coef(|p| p.mag_new_time),
             mag_reject_time: p.coef(|p| p.mag_reject_time),
         }

@@ -56,8 +56,12 @@ impl<T: Lane> SqrtEskf<T> {
         let st = &mut self.state;
         let apply = use_mag & psi_ok & !seeded;
         let az = st.field.azimuth;
+        let keep = one - self.per_heading.k_azimuth;
         let az = T::select(apply, az - az * self.per_heading.k_azimuth, az);
         st.field.azimuth = az;
+        // The error the adoption inherited decays with the azimuth (report only).
+        let v = st.field.azimuth_var;
+        st.field.azimuth_var = T::select(apply, v * (keep * keep), v);
         // One wrap of the whole difference: with `mag_azimuth_tau = 0` (az = 0) this is the
         // innovation of a reference that always points north, to the bit.
         let psi = (psi6 - st.heading_offset - az).wrap_pi();
@@ -174,6 +178,14 @@ impl<T: Lane> SqrtEskf<T> {
         nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
         // The adopted field keeps the heading: it is measured from its own azimuth.
         nf.azimuth = T::select(adopt, nf.candidate_azimuth, nf.azimuth);
+        // Its azimuth was measured with today's heading: it inherits that heading's
+        // variance against north, the offset's and the old reference's (report only).
+        nf.azimuth_var = T::select(
+            adopt,
+            f.azimuth_error_var() + self.state.heading_offset_var,
+            nf.azimuth_var,
+        );
+        nf.adopted_azimuth = T::select(adopt, nf.candidate_azimuth, nf.adopted_azimuth);
         nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
         let reference = FieldReference {
             norm,
@@ -183,6 +195,8 @@ impl<T: Lane> SqrtEskf<T> {
             candidate_time: zero,
             rejected_time: zero,
             azimuth: zero,
+            azimuth_var: zero,
+            adopted_azimuth: zero,
             candidate_azimuth: azimuth,
             undisturbed_time: zero,
             lowpass_norm: norm,
