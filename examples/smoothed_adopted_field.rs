@@ -7,8 +7,9 @@
 //!
 //! ```sh
 //! cargo run --release --example smoothed_adopted_field -- --seconds 300 --seeds 5
+//! cargo run --release --example smoothed_adopted_field -- mag_home_time=0   # PARAM=VALUE
 //! ```
-use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::smooth::forward_backward;
 use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::eval::sim::scenario;
@@ -16,12 +17,13 @@ use rootfuse::lane::wide::f64x2;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut seeds, mut seconds) = (5u64, 120.0);
+    let mut base = SqrtEskfParams::default();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--seeds" => seeds = args.next().ok_or("--seeds N")?.parse()?,
             "--seconds" => seconds = args.next().ok_or("--seconds S")?.parse()?,
-            _ => return Err(format!("unknown argument {a} (--seeds N, --seconds S)").into()),
+            _ => base.apply(&a)?,
         }
     }
     println!("| scenario ({seeds} seeds, {seconds} s) | passes without | with |");
@@ -38,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for (sum, scale) in sums.iter_mut().zip([0.0, 1.0]) {
                 let p = SqrtEskfParams {
                     adopted_field_error_scale: scale,
-                    ..SqrtEskfParams::default()
+                    ..base.clone()
                 }
                 .for_smoothing();
                 let out = forward_backward(&rec, || SqrtEskf::<f64x2>::new(&p), true)

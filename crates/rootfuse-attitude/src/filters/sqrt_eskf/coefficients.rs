@@ -59,6 +59,7 @@ impl<T: Lane> Coefficients<T> {
             adopted_field_error_scale: p.coef(|p| p.adopted_field_error_scale),
             mag_new_time: p.coef(|p| p.mag_new_time),
             mag_reject_time: p.coef(|p| p.mag_reject_time),
+            mag_home_time: p.coef(|p| p.mag_home_time),
         }
     }
 

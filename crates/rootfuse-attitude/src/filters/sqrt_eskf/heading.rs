@@ -142,6 +142,7 @@ impl<T: Lane> SqrtEskf<T> {
             (norm - rn).abs().simd_le(c.mag_norm_th * rn) & (dip - rd).abs().simd_le(c.mag_dip_th)
         };
         let ok_ref = matches(f.norm, f.dip) & due & f.known;
+        let ok_home = matches(f.home_norm, f.home_dip) & due & f.known & !f.at_home;
         let ok_cand = matches(f.candidate_norm, f.candidate_dip) & due;
         let k_ref = self.per_heading.k_ref;
         let mut nf = f;
@@ -168,52 +169,46 @@ impl<T: Lane> SqrtEskf<T> {
         nf.dip = T::select(ok_ref, f.dip + (dip - f.dip) * k_ref, f.dip);
         let rejected = due & !ok_ref;
         nf.rejected_time = T::select(rejected, f.rejected_time + dt, zero);
-        // Re-acquisition: a candidate stable for mag_new_time, or any stable candidate
+        // The home field back: the reference again at once, pointing north. Otherwise
+        // re-acquisition: a candidate stable for mag_new_time, or any stable candidate
         // (≥ rest_time) once rejection has lasted mag_reject_time.
+        let home = rejected & ok_home;
         let adopt = rejected
+            & !home
             & (nf.candidate_time.simd_ge(c.mag_new_time)
                 | (nf.rejected_time.simd_ge(c.mag_reject_time)
                     & nf.candidate_time.simd_ge(c.rest_time)));
-        nf.norm = T::select(adopt, nf.candidate_norm, nf.norm);
-        nf.dip = T::select(adopt, nf.candidate_dip, nf.dip);
-        // The adopted field keeps the heading: it is measured from its own azimuth.
-        nf.azimuth = T::select(adopt, nf.candidate_azimuth, nf.azimuth);
-        // Its azimuth was measured with today's heading: it inherits that heading's
-        // variance against north, the offset's and the old reference's (report only).
-        nf.azimuth_var = T::select(
+        // An adopted field's azimuth was measured with today's heading: it inherits that
+        // heading's variance against north, the offset's and the old reference's.
+        nf.switch(
             adopt,
+            home,
             f.azimuth_error_var() + self.state.heading_offset_var,
-            nf.azimuth_var,
         );
-        nf.adopted_azimuth = T::select(adopt, nf.candidate_azimuth, nf.adopted_azimuth);
-        nf.rejected_time = T::select(adopt, zero, nf.rejected_time);
-        let reference = FieldReference {
-            norm,
-            dip,
-            candidate_norm: norm,
-            candidate_dip: dip,
-            candidate_time: zero,
-            rejected_time: zero,
-            azimuth: zero,
-            azimuth_var: zero,
-            adopted_azimuth: zero,
-            candidate_azimuth: azimuth,
-            undisturbed_time: zero,
-            lowpass_norm: norm,
-            lowpass_dip: dip,
-            known: <T::Mask as Mask>::splat(true),
-        };
+        // The heading's error against north, which the left reference's azimuth carried,
+        // is now the offset's: its variance takes it, so the offset turns to north quickly.
+        self.state.heading_offset_var = T::select(
+            home,
+            self.state.heading_offset_var + f.azimuth_error_var(),
+            self.state.heading_offset_var,
+        );
+        let reference = FieldReference::first(norm, dip, azimuth);
         // (Selects skipped where every lane would keep one side: the same bits.)
         if seeded.any() {
             nf = Select::select(seeded, &reference, &nf);
         }
         let adopt = adopt | seeded;
         nf.known = f.known | adopt;
-        let matched = ok_ref | adopt;
+        let matched = ok_ref | adopt | home;
         nf.undisturbed_time = T::select(matched, f.undisturbed_time + dt, zero);
         // A new reference corrects the heading at once.
         let settled = nf.undisturbed_time.max(c.mag_settle_time);
         nf.undisturbed_time = T::select(seeded, settled, nf.undisturbed_time);
+        // An adopted field that has held long enough is home; home follows the reference.
+        nf.at_home =
+            ((f.at_home & !adopt) | home | seeded) | nf.undisturbed_time.simd_ge(c.mag_home_time);
+        nf.home_norm = T::select(nf.at_home, nf.norm, nf.home_norm);
+        nf.home_dip = T::select(nf.at_home, nf.dip, nf.home_dip);
         let use_mag = matched & due & nf.undisturbed_time.simd_ge(c.mag_settle_time);
         self.state.field = if due.all() {
             nf
@@ -227,6 +222,50 @@ impl<T: Lane> SqrtEskf<T> {
         self.state.mag_disturbed = s.mag_ok & self.state.field_disturbed;
         self.rejections.reject_field(self.state.mag_disturbed);
         use_mag
+    }
+}
+
+impl<T: Lane> FieldReference<T> {
+    /// A lane's first field: the reference and the home field, pointing north, from the
+    /// low-passed `norm` and `dip` of its reading, whose `azimuth` starts the candidate's.
+    fn first(norm: T, dip: T, azimuth: T) -> Self {
+        let zero = T::zero();
+        let yes = <T::Mask as Mask>::splat(true);
+        FieldReference {
+            norm,
+            dip,
+            candidate_norm: norm,
+            candidate_dip: dip,
+            candidate_time: zero,
+            rejected_time: zero,
+            azimuth: zero,
+            azimuth_var: zero,
+            adopted_azimuth: zero,
+            home_norm: norm,
+            home_dip: dip,
+            at_home: yes,
+            candidate_azimuth: azimuth,
+            undisturbed_time: zero,
+            lowpass_norm: norm,
+            lowpass_dip: dip,
+            known: yes,
+        }
+    }
+
+    /// Where `adopt`, the candidate becomes the reference and keeps the heading (its azimuth
+    /// is the candidate's, with the variance `inherited`, rad²); where `home`, the home field
+    /// becomes the reference, pointing north. The rejection time starts again in both.
+    fn switch(&mut self, adopt: T::Mask, home: T::Mask, inherited: T) {
+        let zero = T::zero();
+        let pick = |candidate: T, home_value: T, now: T| {
+            T::select(adopt, candidate, T::select(home, home_value, now))
+        };
+        self.norm = pick(self.candidate_norm, self.home_norm, self.norm);
+        self.dip = pick(self.candidate_dip, self.home_dip, self.dip);
+        self.azimuth = pick(self.candidate_azimuth, zero, self.azimuth);
+        self.azimuth_var = pick(inherited, zero, self.azimuth_var);
+        self.adopted_azimuth = pick(self.candidate_azimuth, zero, self.adopted_azimuth);
+        self.rejected_time = T::select(adopt | home, zero, self.rejected_time);
     }
 }
 

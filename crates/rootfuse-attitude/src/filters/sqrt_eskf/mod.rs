@@ -22,6 +22,8 @@ mod set_state;
 mod two_windows;
 // The 9D heading: the field test and the heading offset.
 mod heading;
+// The reported attitude covariance: `P`'s block and the model errors.
+mod report;
 // The parameters converted to the filter's precision.
 mod coefficients;
 // Coefficients cached while the time step repeats.
@@ -257,6 +259,16 @@ params! {
         mag_new_time: f64 = 20.0, "s", [0.0, 1e6];
         /// Rejection lasting this long makes the (stable) candidate the reference.
         mag_reject_time: f64 = 60.0, "s", [0.0, 1e6];
+        /// The home field is the one that defines north: the first, or an adopted field
+        /// once it has corrected the heading this long without interruption (its azimuth has
+        /// decayed to north by then: about 3·`mag_azimuth_tau`). Where the field stops
+        /// matching an adopted reference and matches the home field, the home field is the
+        /// reference again at once, pointing north, and the heading's variance takes the left
+        /// reference's azimuth error (`adopted_field_error_scale`'s): a lasting disturbance
+        /// that ends (a car, a lift) gives the heading back at once instead of after
+        /// `mag_new_time` of rejection and minutes of `mag_azimuth_tau`. 0 makes every adopted
+        /// field home at once (no return).
+        mag_home_time: f64 = 180.0, "s", [0.0, 1e9];
         /// 9: use the magnetometer; 6: gravity only.
         dof: Dof = 9.0, "1", [6.0, 9.0];
     }
@@ -283,6 +295,10 @@ lane_state! {
         azimuth_var: T,
         /// `azimuth` at adoption (0 for the first field).
         adopted_azimuth: T,
+        /// The home field's norm and dip (`mag_home_time`), and whether it is the reference.
+        home_norm: T,
+        home_dip: T,
+        at_home: T::Mask,
         candidate_azimuth: T,
         /// How long (s) the field has matched the reference (or been adopted) without
         /// interruption; a new reference starts at `mag_settle_time` (it corrects at once).
@@ -293,16 +309,6 @@ lane_state! {
         /// The lane has a reference: false until its first usable reading, and again after
         /// `forget_field_reference`.
         known: T::Mask,
-    }
-}
-
-impl<T: Lane> FieldReference<T> {
-    /// The variance (rad²) of the reference's azimuth against north: what it inherited at
-    /// adoption (decayed with the azimuth) and the square of the turn its decay toward north
-    /// has made since, an error where the field is not the earth's.
-    fn azimuth_error_var(&self) -> T {
-        let turn = self.adopted_azimuth - self.azimuth;
-        self.azimuth_var + turn * turn
     }
 }
 
@@ -472,6 +478,7 @@ lane_state! {
         adopted_field_error_scale: T,
         mag_new_time: T,
         mag_reject_time: T,
+        mag_home_time: T,
     }
 }
 
@@ -570,6 +577,9 @@ impl<T: Lane> State<T> {
                 azimuth: zero,
                 azimuth_var: zero,
                 adopted_azimuth: zero,
+                home_norm: zero,
+                home_dip: zero,
+                at_home: <T::Mask as Mask>::splat(false),
                 candidate_azimuth: zero,
                 undisturbed_time: zero,
                 lowpass_norm: zero,
@@ -756,33 +766,6 @@ impl<T: Lane> SqrtEskf<T> {
     /// The error-state covariance `P = S·Sᵀ` (symmetric PSD by construction).
     pub fn covariance(&self) -> Mat<T, 6, 6> {
         self.state.factor * self.state.factor.transpose()
-    }
-
-    /// [`OrientationFilter::attitude_covariance`] without its `Option`.
-    fn attitude_block(&self) -> Mat<T, 3, 3> {
-        // The attitude block of `S·Sᵀ` only (`S` upper triangular: `S_ik = 0` for `k < i`):
-        // a quarter of the full product, the same sums in the same order.
-        let s = &self.state.factor;
-        let mut a = Mat::<T, 3, 3>::from_fn(|i, j| {
-            let mut v = T::zero();
-            for k in i.max(j)..6 {
-                v = s.m[i][k].mul_add(s.m[j][k], v);
-            }
-            v
-        });
-        if self.nine_d {
-            for i in 0..2 {
-                a.m[i][2] = T::zero();
-                a.m[2][i] = T::zero();
-            }
-            a.m[2][2] = self.state.heading_offset_var
-                + self.state.heading_innovation_ms * self.coef.heading_model_error_scale
-                + self.state.field.azimuth_error_var() * self.coef.adopted_field_error_scale;
-        }
-        let e = self.state.innovation_ms * self.model_error_scale_now() + self.state.scale_error2;
-        a.m[0][0] += e;
-        a.m[1][1] += e;
-        a
     }
 
     /// Per lane: the sensor is detected at rest now ([`OrientationFilter::rest_detected`]
