@@ -9,12 +9,16 @@
 //! ```sh
 //! cargo run --release --example field_layouts                      # defaults
 //! cargo run --release --example field_layouts -- mag_azimuth_tau=120 --seeds 3
+//! cargo run --release --example field_layouts -- --seconds 600   # the scenarios' longer runs
 //! ```
-use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::{OrientationFilter, Quat, Recording, Vec3};
 use rootfuse::eval::consistency::{UpperTriangle, consistency, upper_triangle};
 use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::eval::sim::{Frame, MagDisturbance, scenario_simulation};
+
+#[path = "shared/param_row.rs"]
+mod param_row;
 
 /// Disturbance episodes as (start, end) in seconds, and the run's length.
 struct Layout {
@@ -64,19 +68,8 @@ fn score(p: &SqrtEskfParams, rec: &Recording) -> Result<[f64; 2], Box<dyn std::e
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut p = SqrtEskfParams::default();
-    let mut seeds = 5u64;
-    let mut args = std::env::args().skip(1);
-    let mut label = Vec::new();
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--seeds" => seeds = args.next().ok_or("--seeds N")?.parse()?,
-            _ => {
-                p.apply(&a)?;
-                label.push(a);
-            }
-        }
-    }
+    let args = param_row::parse(5, 300.0)?;
+    let (p, seeds, seconds) = (&args.params, args.seeds, args.seconds);
     let mut header = Vec::new();
     let mut cells = Vec::new();
     let mut cell = |name: String,
@@ -84,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
      -> Result<(), Box<dyn std::error::Error>> {
         let mut sum = [0.0; 2];
         for seed in 0..seeds {
-            let [e, c] = score(&p, &recs(seed)?)?;
+            let [e, c] = score(p, &recs(seed)?)?;
             sum[0] += e / seeds as f64;
             sum[1] += c / seeds as f64;
         }
@@ -121,7 +114,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "magnetic-disturbance",
         "vehicle-disturbed",
     ] {
-        for seconds in [120.0, 300.0] {
+        for seconds in [120.0, seconds] {
             cell(format!("{name} {seconds} s"), &|seed| {
                 Ok(scenario_simulation(name, seed, seconds, 100.0)?
                     .run()?
@@ -129,15 +122,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })?;
         }
     }
-    println!("| parameters | {} |", header.join(" | "));
-    println!(
-        "| {} | {} |",
-        if label.is_empty() {
-            "defaults".to_string()
-        } else {
-            label.join(" ")
-        },
-        cells.join(" | ")
-    );
+    param_row::print_row(&args.label, &header, &cells);
     Ok(())
 }

@@ -11,13 +11,16 @@
 //! ```
 //! The data folder is `$ROOTFUSE_BROAD_DIR` or `../shared/broad_csv` (left out, and said so,
 //! where it is missing).
-use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::{Dof, OrientationFilter, Quat, Recording};
 use rootfuse::eval::consistency::{UpperTriangle, consistency, upper_triangle};
 use rootfuse::eval::metrics::Alignment;
 use rootfuse::eval::sim::{HARD_CASES, scenario};
 use rootfuse::io::read_dir;
 use std::path::PathBuf;
+
+#[path = "shared/param_row.rs"]
+mod param_row;
 
 /// The flagship over `rec` in `dof`: coverage total and inclination of its reported
 /// covariance, `floor_deg` added per axis.
@@ -91,20 +94,8 @@ fn mean_coverage(
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut p = SqrtEskfParams::default();
-    let (mut seeds, mut seconds) = (5u64, 120.0);
-    let mut args = std::env::args().skip(1);
-    let mut label = Vec::new();
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--seeds" => seeds = args.next().ok_or("--seeds N")?.parse()?,
-            "--seconds" => seconds = args.next().ok_or("--seconds S")?.parse()?,
-            _ => {
-                p.apply(&a)?;
-                label.push(a);
-            }
-        }
-    }
+    let args = param_row::parse(5, 120.0)?;
+    let (p, seeds, seconds) = (&args.params, args.seeds, args.seconds);
     let mut cells = Vec::new();
     let mut header = Vec::new();
     for name in HARD_CASES {
@@ -116,7 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let jobs = (0..seeds)
             .map(|seed| Ok((scenario(name, seed, seconds, 100.0)?, dof)))
             .collect::<Result<Vec<_>, rootfuse::eval::sim::SimError>>()?;
-        let [t, i] = mean_coverage(&p, &jobs, 0.0)?;
+        let [t, i] = mean_coverage(p, &jobs, 0.0)?;
         header.push(name.to_string());
         cells.push(format!("{t:.3} / {i:.3}"));
     }
@@ -127,22 +118,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Ok(recs) => {
             for dof in [Dof::Nine, Dof::Six] {
                 let jobs: Vec<_> = recs.iter().map(|r| (r.clone(), dof)).collect();
-                let [t, i] = mean_coverage(&p, &jobs, 0.5)?;
+                let [t, i] = mean_coverage(p, &jobs, 0.5)?;
                 header.push(format!("BROAD {}D, floor 0.5°", dof.count()));
                 cells.push(format!("{t:.3} / {i:.3}"));
             }
         }
         Err(e) => eprintln!("BROAD left out ({}): {e}", dir.display()),
     }
-    println!("| parameters | {} |", header.join(" | "));
-    println!(
-        "| {} | {} |",
-        if label.is_empty() {
-            "defaults".to_string()
-        } else {
-            label.join(" ")
-        },
-        cells.join(" | ")
-    );
+    param_row::print_row(&args.label, &header, &cells);
     Ok(())
 }

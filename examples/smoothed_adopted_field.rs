@@ -9,25 +9,20 @@
 //! cargo run --release --example smoothed_adopted_field -- --seconds 300 --seeds 5
 //! cargo run --release --example smoothed_adopted_field -- mag_home_time=0   # PARAM=VALUE
 //! ```
-use rootfuse::attitude::filters::{Params, SqrtEskf, SqrtEskfParams};
+use rootfuse::attitude::filters::{SqrtEskf, SqrtEskfParams};
 use rootfuse::attitude::smooth::forward_backward;
 use rootfuse::eval::metrics::{Alignment, evaluate};
 use rootfuse::eval::sim::scenario;
 use rootfuse::lane::wide::f64x2;
 
+#[path = "shared/param_row.rs"]
+mod param_row;
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let (mut seeds, mut seconds) = (5u64, 120.0);
-    let mut base = SqrtEskfParams::default();
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--seeds" => seeds = args.next().ok_or("--seeds N")?.parse()?,
-            "--seconds" => seconds = args.next().ok_or("--seconds S")?.parse()?,
-            _ => base.apply(&a)?,
-        }
-    }
-    println!("| scenario ({seeds} seeds, {seconds} s) | passes without | with |");
-    println!("|---|---|---|");
+    let args = param_row::parse(5, 120.0)?;
+    let (base, seeds, seconds) = (&args.params, args.seeds, args.seconds);
+    let mut header = Vec::new();
+    let mut cells = Vec::new();
     for name in [
         "pendulum-disturbed",
         "vehicle-disturbed",
@@ -48,7 +43,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 *sum += evaluate(&rec, &out.quat, Alignment::NineD)?.total / seeds as f64;
             }
         }
-        println!("| {name} | {:.2} | {:.2} |", sums[0], sums[1]);
+        header.push(format!(
+            "{name} ({seeds} seeds, {seconds} s), passes without / with"
+        ));
+        cells.push(format!("{:.2} / {:.2}", sums[0], sums[1]));
     }
+    param_row::print_row(&args.label, &header, &cells);
     Ok(())
 }
