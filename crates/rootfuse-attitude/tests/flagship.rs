@@ -726,13 +726,7 @@ fn an_adopted_field_keeps_the_heading() {
             mag_home_time: 0.0,
             ..params(9.0)
         };
-        let mut sum = 0.0;
-        for seed in 0..3 {
-            let rec = scenario("pendulum-disturbed", seed, 120.0, 100.0).unwrap();
-            let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
-            sum += evaluate(&rec, &est, Alignment::NineD).unwrap().total / 3.0;
-        }
-        sum
+        disturbed_pendulum_rmse(&p, 120.0)
     };
     let (kept, north) = (rmse(params(9.0).mag_azimuth_tau), rmse(0.0));
     eprintln!("pendulum-disturbed 9D: {kept:.2}° keeping the heading, {north:.2}° adopting north");
@@ -752,19 +746,25 @@ fn the_home_field_gives_the_heading_back() {
             mag_home_time: home_time,
             ..params(9.0)
         };
-        let mut sum = 0.0;
-        for seed in 0..3 {
-            let rec = scenario("pendulum-disturbed", seed, 300.0, 100.0).unwrap();
-            let est = rec.estimate(&mut SqrtEskf::<f64>::new(&p));
-            sum += evaluate(&rec, &est, Alignment::NineD).unwrap().total / 3.0;
-        }
-        sum
+        disturbed_pendulum_rmse(&p, 300.0)
     };
     let (home, without) = (rmse(params(9.0).mag_home_time), rmse(0.0));
     eprintln!(
         "pendulum-disturbed 9D, 300 s: {home:.2}° with the home field, {without:.2}° without"
     );
     assert!(home < 0.6 * without, "{home} vs {without}");
+}
+
+/// Mean 9D total RMSE (degrees) of the simulated `pendulum-disturbed`, seeds 0–2, `seconds`
+/// long.
+fn disturbed_pendulum_rmse(p: &SqrtEskfParams, seconds: f64) -> f64 {
+    let mut sum = 0.0;
+    for seed in 0..3 {
+        let rec = scenario("pendulum-disturbed", seed, seconds, 100.0).unwrap();
+        let est = rec.estimate(&mut SqrtEskf::<f64>::new(p));
+        sum += evaluate(&rec, &est, Alignment::NineD).unwrap().total / 3.0;
+    }
+    sum
 }
 
 /// A lane whose magnetometer readings start only after the first 2 s (NaN before) takes its

@@ -179,19 +179,13 @@ impl<T: Lane> SqrtEskf<T> {
                 | (nf.rejected_time.simd_ge(c.mag_reject_time)
                     & nf.candidate_time.simd_ge(c.rest_time)));
         // An adopted field's azimuth was measured with today's heading: it inherits that
-        // heading's variance against north, the offset's and the old reference's.
-        nf.switch(
-            adopt,
-            home,
-            f.azimuth_error_var() + self.state.heading_offset_var,
-        );
-        // The heading's error against north, which the left reference's azimuth carried,
-        // is now the offset's: its variance takes it, so the offset turns to north quickly.
-        self.state.heading_offset_var = T::select(
-            home,
-            self.state.heading_offset_var + f.azimuth_error_var(),
-            self.state.heading_offset_var,
-        );
+        // heading's variance against north, the offset's and the old reference's. Where the
+        // home field is back, the error the old reference's azimuth carried is the offset's:
+        // its variance takes it, so the offset turns to north quickly.
+        let old_reference = f.azimuth_error_var();
+        let offset_var = self.state.heading_offset_var;
+        nf.switch(adopt, home, old_reference + offset_var);
+        self.state.heading_offset_var = T::select(home, offset_var + old_reference, offset_var);
         let reference = FieldReference::first(norm, dip, azimuth);
         // (Selects skipped where every lane would keep one side: the same bits.)
         if seeded.any() {

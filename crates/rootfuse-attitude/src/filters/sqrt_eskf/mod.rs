@@ -248,12 +248,12 @@ params! {
         /// which shrinks as the azimuth decays toward north (`mag_azimuth_tau`); and that
         /// decay is itself an error where the adopted field is a lasting disturbance, not the
         /// earth's, so the square of the turn it has made since adoption is added too. Without
-        /// it the heading's variance shrinks against the adopted field as if it pointed north:
-        /// over 300 s of the simulated disturbed scenarios the 95 % coverage of the total
-        /// error was 0.79–0.83, with it 0.96–0.97 (`docs/accuracy.md`). Online it is report
-        /// only; the smoother's passes keep it, since their fusion weighs each pass's heading
-        /// by its variance: a pass that has turned toward an adopted field yields to the
-        /// other (over 300 s the smoothed 9D error of those scenarios falls to a quarter).
+        /// it the heading's variance shrinks against the adopted field as if it pointed north,
+        /// and over minutes of a disturbed field the 95 % ellipsoid holds too few of the
+        /// errors (`docs/accuracy.md`, "The adopted field's azimuth error in the report").
+        /// Online it is report only; the smoother's passes keep it, since their fusion weighs
+        /// each pass's heading by its variance: a pass that has turned toward an adopted field
+        /// yields to the other.
         adopted_field_error_scale: f64 = 1.0, "1", [0.0, 1e3];
         /// A stable candidate field becomes the reference after this long.
         mag_new_time: f64 = 20.0, "s", [0.0, 1e6];
