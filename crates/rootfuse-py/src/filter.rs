@@ -5,8 +5,9 @@ use crate::arrays::{self, DofArg, Steps, same_length, sensor_matrix};
 use crate::inputs::Inputs;
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyString};
 use rootfuse_attitude::filters::{ParamKind, Rejections, StateError};
 use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, Mask, OrientationFilter, Recording, Vec3};
@@ -629,16 +630,50 @@ fn has_covariance(state: &State) -> bool {
     with_state!(state, f => f.attitude_covariance().is_some())
 }
 
-/// The counters as a dict.
+/// The counters as a dict: `{"dt", "gyr", "acc", "mag", "gated", "mag_disturbed"}`.
 pub fn rejections_dict<'py>(py: Python<'py>, r: &RejectionTotals) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("dt", r.dt)?;
-    d.set_item("gyr", r.gyr)?;
-    d.set_item("acc", r.acc)?;
-    d.set_item("mag", r.mag)?;
-    d.set_item("gated", r.gated)?;
-    d.set_item("mag_disturbed", r.mag_disturbed)?;
-    Ok(d)
+    RejectionDicts::new(py)?.dict(r)
+}
+
+/// [`rejections_dict`] for many channels: each dict a copy of one with every count zero (the
+/// same keys in the same order), the counts that are not zero then set under interned keys.
+/// Building each dict from its six items, a new key string each, took 0.8 µs a channel: a
+/// tenth of `run_many`'s time on 4096 channels of 2000 samples.
+pub struct RejectionDicts<'py> {
+    zeros: Bound<'py, PyDict>,
+}
+
+impl<'py> RejectionDicts<'py> {
+    /// The all-zero dict the others copy.
+    pub fn new(py: Python<'py>) -> PyResult<Self> {
+        let zeros = PyDict::new(py);
+        for (key, _) in Self::counts(py, &RejectionTotals::default()) {
+            zeros.set_item(key, 0u64)?;
+        }
+        Ok(Self { zeros })
+    }
+
+    /// The dict of `r`'s counts.
+    pub fn dict(&self, r: &RejectionTotals) -> PyResult<Bound<'py, PyDict>> {
+        let d = self.zeros.copy()?;
+        for (key, n) in Self::counts(self.zeros.py(), r) {
+            if n != 0 {
+                d.set_item(key, n)?;
+            }
+        }
+        Ok(d)
+    }
+
+    fn counts<'a>(py: Python<'a>, r: &RejectionTotals) -> [(&'a Bound<'a, PyString>, u64); 6] {
+        [
+            (intern!(py, "dt"), r.dt),
+            (intern!(py, "gyr"), r.gyr),
+            (intern!(py, "acc"), r.acc),
+            (intern!(py, "mag"), r.mag),
+            (intern!(py, "gated"), r.gated),
+            (intern!(py, "mag_disturbed"), r.mag_disturbed),
+        ]
+    }
 }
 
 /// A `Recording` from arrays (what the smoother, metrics and writer take).

@@ -10,7 +10,7 @@ use crate::arrays::{
     DofArg, Floats, SensorArray, Steps, float_array, is_bool, positive, sensor_array, type_name,
     vector,
 };
-use crate::filter::{rejections_dict, spec_from};
+use crate::filter::{RejectionDicts, spec_from};
 use crate::inputs::Inputs;
 use crate::series_arrays::{ArraySink, SeriesArrays, SeriesFloat, SeriesViews};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
@@ -263,9 +263,10 @@ fn final_states<'py>(
     let out = PyDict::new(py);
     out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, 4])?)?;
     out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, 3])?)?;
+    let dicts = RejectionDicts::new(py)?;
     let rej = PyList::empty(py);
     for s in &states {
-        rej.append(rejections_dict(py, &s.rejections)?)?;
+        rej.append(dicts.dict(&s.rejections)?)?;
     }
     out.set_item("rejections", rej)?;
     Ok(out.into_any())
@@ -544,15 +545,17 @@ impl Series<'_, '_> {
         if self.stacked {
             let out = dicts.into_iter().next().unwrap_or_else(|| PyDict::new(py));
             let rej = PyList::empty(py);
+            let counts = RejectionDicts::new(py)?;
             for r in &rejections {
-                rej.append(rejections_dict(py, r)?)?;
+                rej.append(counts.dict(r)?)?;
             }
             out.set_item("rejections", rej)?;
             Ok(out.into_any())
         } else {
             let list = PyList::empty(py);
+            let counts = RejectionDicts::new(py)?;
             for (d, r) in dicts.into_iter().zip(&rejections) {
-                d.set_item("rejections", rejections_dict(py, r)?)?;
+                d.set_item("rejections", counts.dict(r)?)?;
                 list.append(d)?;
             }
             Ok(list.into_any())

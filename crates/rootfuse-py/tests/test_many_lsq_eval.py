@@ -30,6 +30,26 @@ def test_run_many_stacked_equals_single_channels(precision):
     assert out["rejections"][3]["gyr"] == 1
 
 
+@pytest.mark.parametrize("series", [False, True])
+def test_run_many_rejections_are_each_channels_own(series):
+    """Each channel's counts in its own dict, the keys of Filter.rejections in their order
+    (the dicts are copies of one all-zero dict: none shares it, none changes it)."""
+    recs = sims(5)
+    gyr = np.stack([r["gyr"] for r in recs])
+    acc = np.stack([r["acc"] for r in recs])
+    gyr[1, 4] = np.nan
+    acc[2, 5:8] = 0.0
+    single = rf.Filter("mahony", dof=6)
+    single.update_batch(gyr[0], acc[0], None, 0.01)
+    for _ in range(2):  # the second run after the first one's dicts were changed
+        rej = rf.run_many("mahony", gyr, acc, None, 0.01, dof=6, series=series)["rejections"]
+        assert [list(r) for r in rej] == [list(single.rejections)] * 5
+        assert [(r["dt"], r["gyr"], r["acc"]) for r in rej] == [(0, 0, 0), (0, 1, 0), (0, 0, 3), (0, 0, 0), (0, 0, 0)]
+        assert len({id(r) for r in rej}) == 5
+        rej[0]["dt"] = 99
+        assert rej[3]["dt"] == 0
+
+
 @pytest.mark.parametrize("precision", ["f32", "f64"])
 def test_run_many_float32_series(precision):
     """dtype float32: the float64 series rounded to float32 (with f32 lanes exactly them),
