@@ -122,9 +122,10 @@ pub const MAX_LANES: usize = 16;
 /// precision once (`f32 → f64 → f32` is exact): `rows[i]` is channel `i`'s `[x, y, z]` rows.
 /// Whole blocks of `LANES` steps are loaded one vector per channel and transposed in
 /// registers ([`Lane::transpose_lanes`]); the steps after the last whole block are written
-/// lane by lane. On x86-64 each block asks the cache for the rows a few blocks ahead
-/// (a prefetch: a hint that changes no value). Returns `false`, writing nothing, unless there are `LANES` channels
-/// (at most [`MAX_LANES`]) each with at least `3 · (start + tile.len())` values.
+/// lane by lane. On x86-64 each block asks the cache for the rows a few blocks ahead (a
+/// prefetch: a hint that changes no value). Returns `false`, writing nothing, unless there
+/// are `LANES` channels (at most [`MAX_LANES`]) each with at least `3 · (start + tile.len())`
+/// values.
 ///
 /// ```
 /// use rootfuse_attitude::Lane;
@@ -205,9 +206,8 @@ pub fn fill_lanes<T: Copy + Into<f64>, L: Lane>(
 }
 
 /// Bytes ahead of the block being read that [`fill_lanes`] asks the cache for, in each
-/// channel's rows: the hardware prefetcher follows few of a chunk's 16 × 3 streams. 256 to
-/// 768 gave the same (Mahony `run_many`, 4096 × 2000, float32 input 3.60 → 3.26–3.29 ns per
-/// update, float64 4.48 → 4.33–4.41; 1024 and more less: docs/performance.md).
+/// channel's rows: the hardware prefetcher follows few of a chunk's 16 × 3 streams (256 to
+/// 768 measured alike, 1024 slower: docs/performance.md, "Prefetch").
 const PREFETCH_BYTES: usize = 512;
 
 /// Most steps per tile of [`Chunk::run_sources`]: each channel of a chunk hands over up to
