@@ -115,6 +115,36 @@ pub fn sensor_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Sensor
     })
 }
 
+/// [`sensor_array`] copied, not borrowed: a C-contiguous, aligned array is copied without a
+/// borrow of the numpy crate's tracker (which checks each new borrow against every other of
+/// the same base array, so borrowing thousands of views of one array is quadratic); any other
+/// is read as [`sensor_array`] reads it.
+pub fn sensor_array_copied<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<SensorArray<'py>> {
+    if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
+        let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<f32>());
+        if let (true, Ok(v)) = (aligned && a.is_c_contiguous(), a.to_vec()) {
+            return Ok(SensorArray {
+                data: SensorData::F32Owned(v),
+                shape: a.shape().to_vec(),
+            });
+        }
+    }
+    if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
+        let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<f64>());
+        if let (true, Ok(v)) = (aligned && a.is_c_contiguous(), a.to_vec()) {
+            let shape = a.shape().to_vec();
+            return Ok(SensorArray {
+                data: SensorData::F64(FloatArray {
+                    data: Data::Owned(v),
+                    shape: shape.clone(),
+                }),
+                shape,
+            });
+        }
+    }
+    sensor_array(obj, name)
+}
+
 /// A `T` array borrowed as it is when C-contiguous (`Ok`), else copied in C order (`Err`),
 /// with its shape; `None` when `obj` is not an array of `T`.
 #[allow(clippy::type_complexity)]

@@ -7,19 +7,21 @@
 //! ([`EstimateSink`](rootfuse_batch::EstimateSink)).
 
 use crate::arrays::{
-    DofArg, Floats, SensorArray, Steps, float_array, is_bool, positive, sensor_array, type_name,
-    vector,
+    DofArg, Floats, SensorArray, Steps, float_array, is_bool, positive, sensor_array,
+    sensor_array_copied, type_name, vector,
 };
 use crate::filter::{RejectionDicts, spec_from};
 use crate::inputs::Inputs;
 use crate::series_arrays::{ArraySink, SeriesArrays, SeriesFloat, SeriesViews};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rootfuse_attitude::OrientationFilter;
 use rootfuse_attitude::registry::FilterSpec;
 use rootfuse_batch::{Columns, Precision, RejectionTotals, run_final_states, run_into_sinks};
+use std::collections::HashMap;
 
 /// Channels as given: one `(C, N, 3)` array, or a list of `(N_i, 3)` arrays.
 struct Channels<'py> {
@@ -50,10 +52,25 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
     if is_sequence(obj) {
         let mut arrays = Vec::new();
         let mut lens = Vec::new();
+        // Views of one array (a fleet cut from one table) past the first few are copied: each
+        // borrow is checked against every other borrow of the same base, so borrowing all of
+        // them would cost the square of their number.
+        let mut views: HashMap<usize, usize> = HashMap::new();
         for (c, item) in obj.try_iter()?.enumerate() {
             let item = item?;
             let label = format!("{name}[{c}]");
-            let a = sensor_array(&item, &label)?;
+            let base = item
+                .getattr(intern!(item.py(), "base"))
+                .ok()
+                .filter(|b| !b.is_none())
+                .map_or(item.as_ptr() as usize, |b| b.as_ptr() as usize);
+            let seen = views.entry(base).or_insert(0);
+            *seen += 1;
+            let a = if *seen > BORROWED_VIEWS {
+                sensor_array_copied(&item, &label)?
+            } else {
+                sensor_array(&item, &label)?
+            };
             match *a.shape.as_slice() {
                 [n, 3] => lens.push(n),
                 _ => {
@@ -90,6 +107,10 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
         ))),
     }
 }
+
+/// Views of one base array that a list of channels borrows; the others are copied
+/// ([`sensor_array_copied`]).
+const BORROWED_VIEWS: usize = 16;
 
 /// Bytes `run_many` holds per channel whatever its length (its filter, specification,
 /// steps and result), measured at about 1.2 KB.
