@@ -1,7 +1,7 @@
 //! Reading NumPy arguments: dtype, shape and length checks with messages that name the
 //! argument and what was expected. Nothing here panics on user data.
 
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyFloat, PyInt};
@@ -115,11 +115,21 @@ pub fn sensor_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Sensor
     })
 }
 
-/// [`sensor_array`] copied, not borrowed: a C-contiguous, aligned array is copied without a
-/// borrow of the numpy crate's tracker (which checks each new borrow against every other of
-/// the same base array, so borrowing thousands of views of one array is quadratic); any other
-/// is read as [`sensor_array`] reads it.
-pub fn sensor_array_copied<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<SensorArray<'py>> {
+/// [`sensor_array`] copied, not borrowed, where it holds at most `max_values` values: a
+/// C-contiguous, aligned array is copied without a borrow of the numpy crate's tracker (which
+/// checks each new borrow against every other of the same base array, so borrowing thousands
+/// of views of one array is quadratic); any other is read as [`sensor_array`] reads it.
+pub fn sensor_array_copied<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    max_values: usize,
+) -> PyResult<SensorArray<'py>> {
+    let small = obj
+        .cast::<PyUntypedArray>()
+        .is_ok_and(|a| a.len() <= max_values);
+    if !small {
+        return sensor_array(obj, name);
+    }
     if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
         let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<f32>());
         if let (true, Ok(v)) = (aligned && a.is_c_contiguous(), a.to_vec()) {

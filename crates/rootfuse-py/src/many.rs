@@ -52,9 +52,11 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
     if is_sequence(obj) {
         let mut arrays = Vec::new();
         let mut lens = Vec::new();
-        // Views of one array (a fleet cut from one table) past the first few are copied: each
-        // borrow is checked against every other borrow of the same base, so borrowing all of
-        // them would cost the square of their number.
+        // Short views of one array (a fleet cut from one table) past the first few are copied:
+        // each borrow is checked against every other borrow of the same base, so borrowing
+        // thousands of them would cost the square of their number. Long ones stay borrowed (no
+        // second copy of a large input): their number is bounded by memory, and each one's
+        // filtering outweighs its check.
         let mut views: HashMap<usize, usize> = HashMap::new();
         for (c, item) in obj.try_iter()?.enumerate() {
             let item = item?;
@@ -67,7 +69,7 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
             let seen = views.entry(base).or_insert(0);
             *seen += 1;
             let a = if *seen > BORROWED_VIEWS {
-                sensor_array_copied(&item, &label)?
+                sensor_array_copied(&item, &label, COPIED_VIEW_VALUES)?
             } else {
                 sensor_array(&item, &label)?
             };
@@ -108,9 +110,13 @@ fn channels<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Channels<'py>>
     }
 }
 
-/// Views of one base array that a list of channels borrows; the others are copied
-/// ([`sensor_array_copied`]).
+/// Views of one base array that a list of channels borrows whatever their length; past them
+/// views of at most [`COPIED_VIEW_VALUES`] values are copied ([`sensor_array_copied`]).
 const BORROWED_VIEWS: usize = 16;
+
+/// Values (3 per sample) of the longest view of a shared base that is copied: 2¹⁷, 1 MiB of
+/// float64.
+const COPIED_VIEW_VALUES: usize = 1 << 17;
 
 /// Bytes `run_many` holds per channel whatever its length (its filter, specification,
 /// steps and result), measured at about 1.2 KB.
