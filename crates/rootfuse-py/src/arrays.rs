@@ -127,32 +127,40 @@ pub fn sensor_array_copied<'py>(
     let small = obj
         .cast::<PyUntypedArray>()
         .is_ok_and(|a| a.len() <= max_values);
-    if !small {
-        return sensor_array(obj, name);
-    }
-    if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
-        let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<f32>());
-        if let (true, Ok(v)) = (aligned && a.is_c_contiguous(), a.to_vec()) {
+    if small {
+        if let Some((v, shape)) = copied_c_order::<f32>(obj) {
             return Ok(SensorArray {
                 data: SensorData::F32Owned(v),
-                shape: a.shape().to_vec(),
-            });
-        }
-    }
-    if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
-        let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<f64>());
-        if let (true, Ok(v)) = (aligned && a.is_c_contiguous(), a.to_vec()) {
-            let shape = a.shape().to_vec();
-            return Ok(SensorArray {
-                data: SensorData::F64(FloatArray {
-                    data: Data::Owned(v),
-                    shape: shape.clone(),
-                }),
                 shape,
             });
         }
+        if let Some((v, shape)) = copied_c_order::<f64>(obj) {
+            let data = SensorData::F64(FloatArray {
+                data: Data::Owned(v),
+                shape: shape.clone(),
+            });
+            return Ok(SensorArray { data, shape });
+        }
     }
     sensor_array(obj, name)
+}
+
+/// A C-contiguous, aligned `T` array copied (the numpy crate's `to_vec`, no borrow), with its
+/// shape; `None` for anything else.
+fn copied_c_order<T: numpy::Element + Copy>(
+    obj: &Bound<'_, PyAny>,
+) -> Option<(Vec<T>, Vec<usize>)> {
+    let a = obj.cast::<PyArrayDyn<T>>().ok()?;
+    if !(a.is_c_contiguous() && is_aligned(a)) {
+        return None;
+    }
+    Some((a.to_vec().ok()?, a.shape().to_vec()))
+}
+
+/// Whether the array's memory is aligned for `T` (an array over a buffer may not be, and a
+/// slice must be).
+fn is_aligned<T: numpy::Element>(a: &Bound<'_, PyArrayDyn<T>>) -> bool {
+    (a.data() as usize).is_multiple_of(std::mem::align_of::<T>())
 }
 
 /// A `T` array borrowed as it is when C-contiguous (`Ok`), else copied in C order (`Err`),
@@ -179,8 +187,7 @@ fn c_order<'py, T: numpy::Element + Copy>(
     };
     // `as_slice` also accepts Fortran order, whose memory is not C order, and unaligned
     // memory (an array over a buffer), which a slice must not be: check both first.
-    let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<T>());
-    let data = if a.is_c_contiguous() && aligned && ro.as_slice().is_ok() {
+    let data = if a.is_c_contiguous() && is_aligned(a) && ro.as_slice().is_ok() {
         Ok(ro)
     } else {
         Err(ro.as_array().iter().copied().collect())
