@@ -394,20 +394,31 @@ fn covariance_and_flags_equal_scalar_runs() {
 #[test]
 fn per_channel_specs_equal_scalar_runs() {
     let recs = recordings(11);
-    for (name, key, values) in [
-        ("mahony", "kp", [0.5, 2.0, 0.1]),
-        ("ekf", "gyr_noise", [0.01, 0.05, 0.002]),
-        ("sqrt-eskf", "tau_acc_long", [0.0, 4.0, 6.0]),
+    for (name, key, values, also) in [
+        ("mahony", "kp", [0.5, 2.0, 0.1], ""),
+        ("ekf", "gyr_noise", [0.01, 0.05, 0.002], ""),
+        ("sqrt-eskf", "tau_acc_long", [0.0, 4.0, 6.0], ""),
         // Lanes that correct their inclination at different samples.
-        ("sqrt-eskf", "acc_update_every", [1.0, 3.0, 8.0]),
-        ("sqrt-eskf", "mag_update_every", [1.0, 3.0, 8.0]),
-        ("sqrt-eskf", "acc_noise_rotation_share", [1.0, 0.3, 0.1]),
+        ("sqrt-eskf", "acc_update_every", [1.0, 3.0, 8.0], ""),
+        ("sqrt-eskf", "mag_update_every", [1.0, 3.0, 8.0], ""),
+        // Lanes that measure the bias at rest at different samples (the recordings are
+        // short: rest is declared after 0.2 s, `static` and `long-rest` rest).
+        (
+            "sqrt-eskf",
+            "rest_update_every",
+            [1.0, 3.0, 8.0],
+            "rest_time=0.2",
+        ),
+        ("sqrt-eskf", "acc_noise_rotation_share", [1.0, 0.3, 0.1], ""),
     ] {
         // Interleaved on purpose: channel c gets value c % 3, and every third one is 6D.
         let specs: Vec<FilterSpec> = (0..recs.len())
             .map(|c| {
                 let mut s = FilterSpec::new(name).unwrap();
                 s.set(&format!("{key}={}", values[c % 3])).unwrap();
+                if !also.is_empty() {
+                    s.set(also).unwrap();
+                }
                 s.set_dof(crate::common::dof(if c % 4 == 3 { 6 } else { 9 }))
                     .unwrap();
                 s

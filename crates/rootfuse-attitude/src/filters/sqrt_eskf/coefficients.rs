@@ -11,6 +11,7 @@ impl<T: Lane> Coefficients<T> {
             bias_noise_every: p.coef(|p| p.bias_noise_every),
             acc_update_every: p.coef(|p| p.acc_update_every),
             mag_update_every: p.coef(|p| p.mag_update_every),
+            rest_update_every: p.coef(|p| p.rest_update_every),
             tau_acc: p.coef(|p| p.tau_acc),
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),

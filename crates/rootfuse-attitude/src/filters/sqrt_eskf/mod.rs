@@ -28,7 +28,7 @@ mod report;
 mod coefficients;
 // Coefficients cached while the time step repeats.
 mod per_dt;
-use per_dt::{Cached, PerDt, PerHeading, PerInterval};
+use per_dt::{Cached, PerDt, PerHeading, PerInterval, divisor};
 
 params! {
     /// Parameters of [`SqrtEskf`]. One set for all recordings.
@@ -62,6 +62,12 @@ params! {
         /// test found the field. 1 is every sample. Accuracy and cost in
         /// `docs/flagship_cost.md`.
         mag_update_every: f64 = 4.0, "samples", [1.0, 1e6];
+        /// At rest, the gyro bias is measured every this many samples (where the sensor is
+        /// at rest at the tick), each measurement standing for the time since the last tick
+        /// (variance `rest_noise²` over that time): the rest low-pass steps every sample, so
+        /// the measurement is as current as ever. 1 is every sample. Accuracy and cost in
+        /// `docs/flagship_cost.md`.
+        rest_update_every: f64 = 8.0, "samples", [1.0, 1e6];
         /// Time constant of the accelerometer low-pass in the quasi-inertial frame.
         tau_acc: f64 = 2.0, "s", [0.0, 100.0];
         /// Time constant of a second, longer accelerometer window (0: one window). The two
@@ -180,7 +186,8 @@ params! {
         rest_acc: f64 = 0.5, "m/s²", [0.0, 100.0];
         /// Minimum duration of a rest before it is declared.
         rest_time: f64 = 1.5, "s", [0.0, 100.0];
-        /// Noise density of the at-rest bias measurement (`r = rest_noise²/dt`).
+        /// Noise density of the at-rest bias measurement (`r = rest_noise²/T`, `T` the time
+        /// one measurement stands for: `rest_update_every`).
         rest_noise: f64 = 0.0004, "rad/s·√s", [1e-9, 10.0];
         /// Initial standard deviation of each gyro-bias component (also what the bias
         /// covariance is re-inflated by on a detected bias step or a re-acquisition).
@@ -378,6 +385,10 @@ lane_state! {
         /// the samples with a usable accelerometer since the last correction.
         inclination_phase: T,
         inclination_time: T,
+        /// Samples since the last at-rest bias tick (`rest_update_every`) and the summed time
+        /// (s) of the stepping samples since then.
+        rest_phase: T,
+        rest_interval_time: T,
         /// The same for the field test (`mag_update_every`), the usable magnetometer readings
         /// since the last test, and the last test's verdict: the field was disturbed.
         heading_phase: T,
@@ -432,6 +443,7 @@ lane_state! {
         bias_noise_every: T,
         acc_update_every: T,
         mag_update_every: T,
+        rest_update_every: T,
         tau_acc: T,
         tau_acc_long: T,
         window_ratio: T,
@@ -553,6 +565,8 @@ impl<T: Lane> State<T> {
             acc_rejected_time: zero,
             inclination_phase: zero,
             inclination_time: zero,
+            rest_phase: zero,
+            rest_interval_time: zero,
             heading_phase: zero,
             heading_samples: zero,
             heading_time: zero,

@@ -53,7 +53,7 @@ impl<T: Lane, V> Deref for Cached<T, V> {
 
 /// `time` where it is positive, else 1: the divisor of a variance from a density (a skipped
 /// sample divides by 1: finite, and discarded).
-fn divisor<T: Lane>(time: T) -> T {
+pub(super) fn divisor<T: Lane>(time: T) -> T {
     T::select(time.simd_gt(T::zero()), time, T::one())
 }
 
@@ -63,9 +63,8 @@ pub(super) struct PerDt<T: Lane> {
     /// `σ_θ·√dt` and `σ_b·√dt`: the process-noise standard deviations per step.
     pub gyr_std: T,
     pub bias_std: T,
-    /// Per-sample measurement variances from the noise densities, `density²/dt`.
+    /// Per-sample measurement variance from the noise density, `acc_noise²/dt`.
     pub r_acc: T,
-    pub r_rest: T,
     /// Low-pass gains `1 − exp(−dt/τ)` of the rest detection and the accelerometer
     /// low-pass after the start-up (each stage τ/2).
     pub k_rest: T,
@@ -103,7 +102,6 @@ impl<T: Lane> ForTime<T> for PerDt<T> {
             gyr_std: c.gyr_noise * sdt,
             bias_std: c.bias_walk * sdt,
             r_acc: c.acc_var / per_sample,
-            r_rest: c.rest_var / per_sample,
             k_rest,
             k_acc,
             k_acc_long,

@@ -460,28 +460,44 @@ impl<T: Lane> SqrtEskf<T> {
 
     /// Bias at rest: the low-passed gyro measures `b` directly, one scalar update per
     /// component against the bias as corrected so far (`b̂ + δb` of `correction`: the
-    /// measurement is linear, so this is exact), added to `correction`.
-    fn correct_bias_at_rest(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
-        // Every lane not at rest discards these updates: skipping them when no lane is at
-        // rest changes no result.
-        if !rest.any() {
+    /// measurement is linear, so this is exact), added to `correction`. Every
+    /// `rest_update_every` samples, in the lanes at rest then, each measurement standing for
+    /// the stepping time since the last tick (`r = rest_noise²/T`; with 1, `T = dt`).
+    fn correct_bias_at_rest(
+        &mut self,
+        s: &Screened<T>,
+        rest: T::Mask,
+        correction: &mut Correction<T>,
+    ) {
+        let st = &mut self.state;
+        let tick = every_nth(&mut st.rest_phase, self.coef.rest_update_every);
+        let time = st.rest_interval_time + s.dt;
+        st.rest_interval_time = T::select(tick, T::zero(), time);
+        let due = rest & tick;
+        // Every lane not due discards these updates: skipping them when no lane is due
+        // changes no result.
+        if !due.any() {
             return;
         }
-        self.rest_axis::<3>(rest, correction);
-        self.rest_axis::<4>(rest, correction);
-        self.rest_axis::<5>(rest, correction);
+        let r = self.coef.rest_var / divisor(time);
+        self.rest_axis::<3>(due, r, correction);
+        self.rest_axis::<4>(due, r, correction);
+        self.rest_axis::<5>(due, r, correction);
     }
 
-    /// The at-rest measurement of bias component `STATE − 3` (`H = e_STATE`).
-    fn rest_axis<const STATE: usize>(&mut self, rest: T::Mask, correction: &mut Correction<T>) {
+    /// The at-rest measurement of bias component `STATE − 3` (`H = e_STATE`), variance `r`.
+    fn rest_axis<const STATE: usize>(
+        &mut self,
+        due: T::Mask,
+        r: T,
+        correction: &mut Correction<T>,
+    ) {
         let mut h = [T::zero(); 6];
         h[STATE] = T::one();
         let k = STATE - 3;
         let z = self.state.rest_gyr_lp.to_array()[k]
             - (self.state.bias.to_array()[k] + correction.dx[STATE]);
-        let r_rest = self.per_dt.r_rest;
-        let (dx, accepted, _) =
-            self.scalar_update::<STATE>(h, z, (r_rest, r_rest), T::from_f64(1e6), rest);
+        let (dx, accepted, _) = self.scalar_update::<STATE>(h, z, (r, r), T::from_f64(1e6), due);
         for (total, d) in correction.dx.iter_mut().zip(dx) {
             *total += d;
         }
@@ -572,7 +588,7 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
                 accepted: <T::Mask as Mask>::splat(false),
             }
         };
-        self.correct_bias_at_rest(rest, &mut correction);
+        self.correct_bias_at_rest(&s, rest, &mut correction);
         self.inject(correction);
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth);
@@ -636,7 +652,8 @@ mod tests {
     use rootfuse_lane::{Lane, wide::f32x8};
 
     /// Lanes whose start-ups end at different samples (each its own time step) still correct
-    /// the inclination, test the field and fold the bias noise at the same samples once
+    /// the inclination, test the field, measure the bias at rest (the sample is still) and
+    /// fold the bias noise at the same samples once
     /// every lane runs: a correction due in any lane costs every lane, so lanes out of step
     /// would pay for up to eight times as many.
     #[test]
@@ -659,6 +676,7 @@ mod tests {
                 ("inclination", st.inclination_time),
                 ("field", st.heading_time),
                 ("bias noise", st.bias_noise_pending),
+                ("bias at rest", st.rest_interval_time),
             ] {
                 let reset = v.simd_eq(f32x8::zero());
                 assert!(reset.all() || reset.none(), "{what} at sample {k}: {v:?}");
