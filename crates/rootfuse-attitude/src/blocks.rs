@@ -147,6 +147,28 @@ pub(crate) fn exp_cos_sinc<T: Lane>(a2: T) -> (T, T) {
     }
 }
 
+/// [`exp_cos_sinc`] of a turn so small that both values round to one: where every lane's
+/// `a²` is at most [`ROUNDS_TO_ONE_A2`] (`2⁻²⁴` in `f32`, `2⁻⁵³` in `f64`), `(1, 1)` without
+/// the series, the same bits (`each_value_rounds_to_one_below_the_limit`); elsewhere
+/// [`exp_cos_sinc`]. For a correction that turns by a fraction `dt/τ` of an error angle (the
+/// complementary filter's heading): in `f32` below the limit while the error is below tens
+/// of degrees. The test is a predicted branch, so the series leaves the dependency chain
+/// from the correction's angle to the corrected orientation.
+#[inline(always)]
+pub(crate) fn small_turn_cos_sinc<T: Lane>(a2: T) -> (T, T) {
+    let limit = ROUNDS_TO_ONE_A2[usize::from(is_f64::<T>())];
+    if a2.simd_le(T::from_f64(limit)).all() {
+        (T::one(), T::one())
+    } else {
+        exp_cos_sinc(a2)
+    }
+}
+
+/// The largest `a²` at which [`gyro_series`]' `cos a` and `sin a / a` both round to one, in
+/// `f32` and in `f64`: `a²/2` and `a²/6` at most half an ulp below one, `2⁻²⁵` and `2⁻⁵⁴`
+/// (round to nearest, ties to even: one), the higher terms far below.
+const ROUNDS_TO_ONE_A2: [f64; 2] = [1.0 / 16_777_216.0, 1.0 / 9_007_199_254_740_992.0];
+
 /// `cos a` and `sin a / a` from their Taylor series in `a² < `[`GYRO_SERIES_A2`]: through
 /// `a⁸` in `f64` (the first dropped term below `a¹⁰/10! < 3·10⁻¹⁷`), through `a⁴` in `f32`
 /// (below `a⁶/6! < 1.4·10⁻⁹`, a hundredth of an f32 ulp of 1). Evaluated by powers of `a²`
@@ -548,4 +570,57 @@ pub fn tilt_compensated_heading<T: Lane>(
     let (psi, mag_ok) = true_heading_error(tilt, mag, declination);
     let ok = acc_ok & mag_ok;
     (T::select(ok, psi, T::zero()), ok)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Below [`ROUNDS_TO_ONE_A2`] the series gives exactly `(1, 1)`, in `f32` and in `f64`,
+    /// so [`small_turn_cos_sinc`]'s shortcut changes no bit; just above, it does not (the
+    /// limit is not looser than it needs to be by more than a factor of two).
+    #[test]
+    fn each_value_rounds_to_one_below_the_limit() {
+        fn check<T: Lane>(limit: f64, one_ulp_below: f64) {
+            let mut a2 = limit;
+            while a2 > 1e-300 {
+                for x in [a2, a2 * 0.999_999, a2 * 0.7] {
+                    let (cos, sinc) = gyro_series(T::from_f64(x));
+                    assert!(
+                        cos.simd_eq(T::one()).all() && sinc.simd_eq(T::one()).all(),
+                        "{x:e}"
+                    );
+                }
+                a2 *= 0.5;
+            }
+            for x in [0.0, f64::MIN_POSITIVE] {
+                let (cos, sinc) = gyro_series(T::from_f64(x));
+                assert!(cos.simd_eq(T::one()).all() && sinc.simd_eq(T::one()).all());
+            }
+            let (cos, _) = gyro_series(T::from_f64(4.0 * limit));
+            assert!(cos.simd_le(T::from_f64(one_ulp_below)).all());
+        }
+        check::<f32>(ROUNDS_TO_ONE_A2[0], 1.0 - f64::from(f32::EPSILON) / 2.0);
+        check::<f64>(ROUNDS_TO_ONE_A2[1], 1.0 - f64::EPSILON / 2.0);
+        check::<rootfuse_lane::wide::f32x8>(
+            ROUNDS_TO_ONE_A2[0],
+            1.0 - f64::from(f32::EPSILON) / 2.0,
+        );
+        // The shortcut and the series agree on both sides of the limit.
+        for x in [
+            0.0,
+            1e-9,
+            ROUNDS_TO_ONE_A2[0],
+            2.0 * ROUNDS_TO_ONE_A2[0],
+            1e-3,
+            0.5,
+        ] {
+            assert_eq!(
+                small_turn_cos_sinc(x as f32),
+                exp_cos_sinc(x as f32),
+                "{x:e}"
+            );
+            assert_eq!(small_turn_cos_sinc(x), exp_cos_sinc(x), "{x:e}");
+        }
+    }
 }

@@ -6,6 +6,7 @@ use super::{Dof, OrientationFilter, Rejections, ScreenBounds, Screened, initiali
 use super::{StateError, quat_without_covariance};
 use crate::blocks::{
     LowPassGain, exp_cos_sinc, field_heading_error, gyro_increment, heading_field_ok,
+    small_turn_cos_sinc,
 };
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask};
@@ -239,8 +240,10 @@ impl<T: Lane> OrientationFilter<T> for Complementary<T> {
             // corrections are measured side by side and applied one after the other.
             let k_mag_half = self.k_mag.gain(s.dt) * T::from_f64(0.5);
             let (psi_half, heading_ok) = heading_error(propagated.rotate(s.mag), k_mag_half);
-            // exp(ψ/2·ẑ) ⊗ q, the rotation's vector along earth-z only.
-            let (cos, sinc) = exp_cos_sinc(psi_half * psi_half);
+            // exp(ψ/2·ẑ) ⊗ q, the rotation's vector along earth-z only; the turn is a fraction
+            // dt/τ of the heading error, so its cos and sin/x are almost always one (the
+            // tilt's turn taken the same way measured slower: docs/flagship_cost.md).
+            let (cos, sinc) = small_turn_cos_sinc(psi_half * psi_half);
             let z = psi_half * sinc;
             let q_mag = Quat::new(
                 cos * q.w - z * q.z,
