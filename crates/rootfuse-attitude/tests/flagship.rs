@@ -537,7 +537,7 @@ fn reset_is_a_new_filter() {
         let fb = |v: Vec3<T>| [v.x, v.y, v.z].map(|x| x.extract(0).into().to_bits());
         assert_eq!(fb(f.bias()), fb(fresh.bias()));
         let fm = |m: &Mat<T, 6, 6>| m.m.map(|r| r.map(|x| x.extract(0).into().to_bits()));
-        assert_eq!(fm(f.covariance_factor()), fm(fresh.covariance_factor()));
+        assert_eq!(fm(&f.covariance_factor()), fm(&fresh.covariance_factor()));
     }
     let rec = scenario("slow-rotation", 3, 20.0, 100.0).unwrap();
     for dof in [9.0, 6.0] {

@@ -62,7 +62,7 @@
 //! | `mahony` | 196 | 344 | 188 |
 //! | `madgwick` | 192 | 328 | 184 |
 //! | `ekf` | 400 | 752 | 390 |
-//! | `sqrt-eskf` | 1064 | 2080 | 1032 |
+//! | `sqrt-eskf` | 1108 | 2168 | 1076 |
 //! | `complementary-reconstruction` | 336 | 624 | 326 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |

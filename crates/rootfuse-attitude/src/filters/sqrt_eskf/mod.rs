@@ -16,6 +16,8 @@ use rootfuse_lane::{Lane, Mask, Mat, Select};
 
 // The per-sample steps and `OrientationFilter::update`.
 mod update;
+// The time update, deferred to the measurement ticks.
+mod time_update;
 // Reset, and the orientation and bias set with their uncertainty.
 mod set_state;
 // The second, longer accelerometer window and the weight that blends the two.
@@ -359,8 +361,15 @@ lane_state! {
         heading_offset_var: T,
         /// Gyro-bias estimate, rad/s, sensor frame.
         bias: Vec3<T>,
-        /// Covariance factor `S` of `[δθ, δb]`: `P = S·Sᵀ`.
+        /// Covariance factor `S` of `[δθ, δb]`: `P = S·Sᵀ` at the last flush of the time
+        /// update (`fold_pending`).
         factor: Mat<T, 6, 6>,
+        /// The time update since that flush: `M = Σ R_k·dt_k` (s) and the attitude noise
+        /// variances, rad², on `δθ_x, δθ_y` (with the start-up and re-acquisition extra) and
+        /// on `δθ_z`.
+        transition_sum: Mat<T, 3, 3>,
+        tilt_noise_var: T,
+        yaw_noise_var: T,
         /// Bias random-walk variance (rad²/s², per axis) not yet folded into `S`, and the
         /// samples it has accumulated over (`bias_noise_every`).
         bias_noise_pending: T,
@@ -554,6 +563,9 @@ impl<T: Lane> State<T> {
             heading_offset_var: T::one(),
             bias: Vec3::zero(),
             factor: coef.initial_factor(),
+            transition_sum: Mat::zeros(),
+            tilt_noise_var: zero,
+            yaw_noise_var: zero,
             bias_noise_pending: zero,
             bias_noise_samples: zero,
             window: InertialLowpass::new(),
@@ -769,17 +781,6 @@ impl<T: Lane> SqrtEskf<T> {
     pub fn quat9(&self) -> Quat<T> {
         let st = &self.state;
         (Quat::from_heading(st.heading_offset) * st.correction * st.strapdown).renormalize()
-    }
-
-    /// The upper-triangular covariance factor `S` of the error
-    /// state `[δθ (rad, earth frame of q6), δb (rad/s, sensor frame)]`: `P = S·Sᵀ`.
-    pub fn covariance_factor(&self) -> &Mat<T, 6, 6> {
-        &self.state.factor
-    }
-
-    /// The error-state covariance `P = S·Sᵀ` (symmetric PSD by construction).
-    pub fn covariance(&self) -> Mat<T, 6, 6> {
-        self.state.factor * self.state.factor.transpose()
     }
 
     /// Per lane: the sensor is detected at rest now ([`OrientationFilter::rest_detected`]

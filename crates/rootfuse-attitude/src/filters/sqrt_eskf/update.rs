@@ -10,60 +10,6 @@ use crate::filters::StateError;
 pub(super) const INITIAL_HEADING_VAR: f64 = 0.25;
 
 impl<T: Lane> SqrtEskf<T> {
-    /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`:
-    /// `F·S = [[A, B − dt·R·D], [0, D]]` is still upper triangular, so only `B` changes
-    /// (`D` upper triangular: 18 products), and the diagonal process noise
-    /// `G·Q^½ = diag(σ_θ·√dt·I, σ_b·√dt·I)` (the earth-frame attitude noise is isotropic,
-    /// `R·Rᵀ = I`) is folded in by [`add_diagonal_noise`], plus extra standard deviations on
-    /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition).
-    fn time_update(&mut self, r: &Mat<T, 3, 3>, dt: T, extra_tilt_std: T, extra_bias_std: T) {
-        let s = &mut self.state.factor;
-        for i in 0..3 {
-            for j in 3..6 {
-                let mut v = T::zero();
-                for k in 3..=j {
-                    v += r.m[i][k - 3] * s.m[k][j];
-                }
-                s.m[i][j] -= dt * v;
-            }
-        }
-        let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
-        // Re-acquisition noise is independent of the gyro noise: add it in quadrature (only
-        // when a lane has some: `√(q²) = q` exactly, so skipping changes nothing).
-        let (qt_xy, qb) =
-            if (extra_tilt_std.simd_ne(T::zero()) | extra_bias_std.simd_ne(T::zero())).any() {
-                (
-                    (qt * qt + extra_tilt_std * extra_tilt_std).sqrt(),
-                    (qb * qb + extra_bias_std * extra_bias_std).sqrt(),
-                )
-            } else {
-                (qt, qb)
-            };
-        // The bias noise every `bias_noise_every` samples (and at once where the bias is
-        // inflated, which keeps the phase: lanes started together stay in step), with the
-        // variance of the samples in between; the attitude noise every sample. Where nothing
-        // is pending, `qb` itself (so 1 gives the bits of folding every sample).
-        let pending = self.state.bias_noise_pending;
-        let tick = every_nth(
-            &mut self.state.bias_noise_samples,
-            self.coef.bias_noise_every,
-        );
-        let s = &mut self.state.factor;
-        let due = tick | extra_bias_std.simd_ne(T::zero());
-        if due.any() {
-            let qb = T::select(pending.simd_eq(T::zero()), qb, (pending + qb * qb).sqrt());
-            let mut all = *s;
-            add_diagonal_noise(&mut all, &[qt_xy, qt_xy, qt, qb, qb, qb]);
-            if !due.all() {
-                add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
-            }
-            *s = Mat::select(due, &all, s);
-        } else {
-            add_diagonal_noise(s, &[qt_xy, qt_xy, qt]);
-        }
-        self.state.bias_noise_pending = T::select(due, T::zero(), pending + qb * qb);
-    }
-
     /// Carlson's square-root scalar update ([`carlson_gains`], then [`carlson_apply`] where
     /// the gate accepts: the factor stays upper triangular) with measurement row `h` (zero
     /// before index `FIRST`) and innovation `nu`, applied where `apply`. `r` is one sample's
@@ -147,11 +93,11 @@ impl<T: Lane> SqrtEskf<T> {
             // The heading offset and the field reference come from the first usable
             // magnetometer reading, in `correct_heading` (the lane has no reference yet).
             st.heading_offset = T::select(fresh, zero, st.heading_offset);
-            st.factor = Mat::select(
-                fresh & !st.preset_covariance,
-                &self.coef.initial_factor(),
-                &st.factor,
-            );
+            let restart = fresh & !st.preset_covariance;
+            st.factor = Mat::select(restart, &self.coef.initial_factor(), &st.factor);
+            st.transition_sum = Mat::select(restart, &Mat::zeros(), &st.transition_sum);
+            st.tilt_noise_var = T::select(restart, zero, st.tilt_noise_var);
+            st.yaw_noise_var = T::select(restart, zero, st.yaw_noise_var);
             // The bias is kept: zero unless `set_bias` gave one before the first sample (the
             // strapdown integration before this sample already used it).
             st.age = T::select(fresh, zero, st.age);
@@ -246,12 +192,18 @@ impl<T: Lane> SqrtEskf<T> {
         // what the time update adds to the 6D heading variance (gyro noise and the
         // earth-vertical bias uncertainty), plus `heading_walk` for magnetic model errors.
         // (6D has no heading offset.)
+        let flush = self.measurement_may_be_due();
         let heading_growth = if self.nine_d {
             let pzz_before = row_norm2(&self.state.factor, 2);
-            self.time_update(&r6, dt, extra, extra_b);
-            (row_norm2(&self.state.factor, 2) - pzz_before).max(zero)
+            let flushed = self.time_update(&r6, dt, (extra, extra_b), flush);
+            if flushed.any() {
+                let growth = (row_norm2(&self.state.factor, 2) - pzz_before).max(zero);
+                T::select(flushed, growth, zero)
+            } else {
+                zero
+            }
         } else {
-            self.time_update(&r6, dt, extra, extra_b);
+            self.time_update(&r6, dt, (extra, extra_b), flush);
             zero
         };
         self.state.acc_rejected_time = T::select(reacquire, zero, self.state.acc_rejected_time);
@@ -533,7 +485,7 @@ pub(super) fn count_since<T: Lane>(
 }
 
 /// `Σ_j S_ij²`: the variance `P_ii` of state `i` from the factor.
-fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
+pub(super) fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
     let mut v = T::zero();
     for x in s.m[i] {
         v += x * x;
@@ -648,8 +600,59 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
 #[cfg(test)]
 mod tests {
     use super::super::{SqrtEskf, SqrtEskfParams};
-    use crate::{ImuSample, OrientationFilter, Vec3};
-    use rootfuse_lane::{Lane, wide::f32x8};
+    use crate::{ImuSample, OrientationFilter, Quat, Vec3};
+    use rootfuse_lane::{Lane, Mat, wide::f32x8};
+
+    /// The time update deferred over several samples (the transitions summed, the attitude
+    /// noise's variances added, one flush) gives the covariance of a time update at every
+    /// sample, to rounding: over 1 to 12 samples of a turning orientation with the start-up's
+    /// extra tilt noise, including a bias-noise tick and a bias inflation on the way.
+    #[test]
+    fn a_deferred_time_update_is_the_time_update_of_every_sample() {
+        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+        for k in 0..400 {
+            let t = f64::from(k) * 0.01;
+            let sample = ImuSample::new(
+                Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos()),
+                Vec3::new(0.3 * t.cos(), -0.2, 9.8),
+                Vec3::new(0.0, 20.0, -40.0),
+            );
+            f.update(&sample, 0.01);
+        }
+        let p = |g: &SqrtEskf<f64>| {
+            let s = g.covariance_factor();
+            s * s.transpose()
+        };
+        for steps in 1..=12 {
+            let (mut each, mut deferred) = (f.clone(), f.clone());
+            for k in 0..steps {
+                let r = Quat::from_euler_zyx(0.3 * f64::from(k), 0.2, -0.1).to_rotation_matrix();
+                let dt = 0.01 + 0.001 * f64::from(k % 3);
+                each.per_dt.refresh(dt, &each.coef);
+                deferred.per_dt.refresh(dt, &deferred.coef);
+                let extra = (0.02, if k == 5 { 0.01 } else { 0.0 });
+                each.time_update(&r, dt, extra, true);
+                deferred.time_update(&r, dt, extra, false);
+            }
+            let (a, b): (Mat<f64, 6, 6>, Mat<f64, 6, 6>) = (p(&each), p(&deferred));
+            for i in 0..6 {
+                for j in 0..6 {
+                    let scale = (a.m[i][i] * a.m[j][j]).sqrt();
+                    assert!(
+                        (a.m[i][j] - b.m[i][j]).abs() <= 1e-13 * scale,
+                        "{steps} steps, P[{i}][{j}]: {} every sample, {} deferred",
+                        a.m[i][j],
+                        b.m[i][j]
+                    );
+                }
+            }
+            // Before the bias inflation (k = 5) nothing flushes the deferred one: its factor
+            // still waits for the noise (what `covariance_factor` applied to a copy).
+            if steps <= 5 {
+                assert!(deferred.state.tilt_noise_var > 0.0 && each.state.tilt_noise_var == 0.0);
+            }
+        }
+    }
 
     /// Lanes whose start-ups end at different samples (each its own time step) still correct
     /// the inclination, test the field, measure the bias at rest (the sample is still) and

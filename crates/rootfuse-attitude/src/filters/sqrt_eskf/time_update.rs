@@ -1,0 +1,120 @@
+//! The flagship's square-root time update, deferred to the samples where a measurement update
+//! may read the covariance factor (the design on [`SqrtEskf::time_update`]).
+
+use super::update::every_nth;
+use super::*;
+
+impl<T: Lane> SqrtEskf<T> {
+    /// Square-root time update on the upper-triangular factor `S = [[A, B], [0, D]]`,
+    /// deferred to the samples where a measurement update may read `S` (`flush`; the bias
+    /// noise's own ticks and inflations flush too). Every sample only accumulates: the
+    /// transitions `F_k = [[I, −R_k·dt_k], [0, I]]` compose to `[[I, −M], [0, I]]` with
+    /// `M = Σ R_k·dt_k` (their diagonal blocks are identities), and the attitude noise
+    /// `diag(σ_θ²·dt_k)` on `δθ` is left unchanged by every later transition (`F·Q·Fᵀ = Q` for
+    /// noise on the attitude block alone), so its variances add up. A flush applies both:
+    /// `F·S = [[A, B − M·D], [0, D]]` is still upper triangular (only `B` changes; `D` upper
+    /// triangular: 18 products), then the noise is folded in by [`add_diagonal_noise`] (the
+    /// earth-frame attitude noise is isotropic, `R·Rᵀ = I`), with extra variances on
+    /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition). Exact in exact arithmetic: `P`
+    /// at a flush is the `P` of a time update at every sample, to rounding. Each lane flushes
+    /// by its own ticks (`flush`, and its own bias noise), so a lane's factor is that of its
+    /// scalar run, bit for bit. Returns the lanes that flushed.
+    pub(super) fn time_update(
+        &mut self,
+        r: &Mat<T, 3, 3>,
+        dt: T,
+        (extra_tilt_std, extra_bias_std): (T, T),
+        flush: T::Mask,
+    ) -> T::Mask {
+        let st = &mut self.state;
+        for i in 0..3 {
+            for j in 0..3 {
+                st.transition_sum.m[i][j] = r.m[i][j].mul_add(dt, st.transition_sum.m[i][j]);
+            }
+        }
+        let (qt, qb) = (self.per_dt.gyr_std, self.per_dt.bias_std);
+        // Re-acquisition noise is independent of the gyro noise: add it in quadrature.
+        st.tilt_noise_var += qt.mul_add(qt, extra_tilt_std * extra_tilt_std);
+        st.yaw_noise_var += qt * qt;
+        // Only when a lane has some: `√(q²) = q` exactly, so skipping changes nothing.
+        let qb = if extra_bias_std.simd_ne(T::zero()).any() {
+            (qb * qb + extra_bias_std * extra_bias_std).sqrt()
+        } else {
+            qb
+        };
+        // The bias noise every `bias_noise_every` samples (and at once where the bias is
+        // inflated, which keeps the phase: lanes started together stay in step), with the
+        // variance of the samples in between. Where nothing is pending, `qb` itself (so 1
+        // gives the bits of folding every sample).
+        let pending = st.bias_noise_pending;
+        let tick = every_nth(&mut st.bias_noise_samples, self.coef.bias_noise_every);
+        let due = tick | extra_bias_std.simd_ne(T::zero());
+        st.bias_noise_pending = T::select(due, T::zero(), pending + qb * qb);
+        let flush = flush | due;
+        if flush.any() {
+            let qb = T::select(pending.simd_eq(T::zero()), qb, (pending + qb * qb).sqrt());
+            st.fold_pending(flush, due.any().then_some((due, qb)));
+        }
+        flush
+    }
+
+    /// Whether any lane's inclination, at-rest bias or (9D) field tick falls on this sample,
+    /// or a lane has no field reference yet (it tests every reading): where a measurement
+    /// update may read the factor, so the deferred time update must be applied first
+    /// ([`time_update`](Self::time_update)). Peeks at the counters [`every_nth`] advances
+    /// later in the sample.
+    pub(super) fn measurement_may_be_due(&self) -> T::Mask {
+        let (st, c) = (&self.state, &self.coef);
+        let next = |phase: T, every: T| (phase + T::one()).simd_ge(every);
+        let mut due = next(st.inclination_phase, c.acc_update_every)
+            | next(st.rest_phase, c.rest_update_every);
+        if self.nine_d {
+            due |= next(st.heading_phase, c.mag_update_every) | !st.field.known;
+        }
+        due
+    }
+}
+
+impl<T: Lane> State<T> {
+    /// Applies the time update accumulated since the last flush ([`SqrtEskf::time_update`])
+    /// in the lanes `lanes` (the others keep theirs, bit for bit): `B ← B − M·D`, then the
+    /// attitude noise folded in, and in the lanes of `bias` also the bias noise `q_b` (rad/s)
+    /// on `δb`; the sums start again.
+    pub(super) fn fold_pending(&mut self, lanes: T::Mask, bias: Option<(T::Mask, T)>) {
+        let mut flushed = self.factor;
+        let s = &mut flushed;
+        let m = &self.transition_sum;
+        for i in 0..3 {
+            for j in 3..6 {
+                let mut v = T::zero();
+                for k in 3..=j {
+                    v += m.m[i][k - 3] * s.m[k][j];
+                }
+                s.m[i][j] -= v;
+            }
+        }
+        let (qxy, qz) = (self.tilt_noise_var.sqrt(), self.yaw_noise_var.sqrt());
+        match bias {
+            Some((due, qb)) => {
+                let mut all = *s;
+                add_diagonal_noise(&mut all, &[qxy, qxy, qz, qb, qb, qb]);
+                if !due.all() {
+                    add_diagonal_noise(s, &[qxy, qxy, qz]);
+                }
+                *s = Mat::select(due, &all, s);
+            }
+            None => add_diagonal_noise(s, &[qxy, qxy, qz]),
+        }
+        if lanes.all() {
+            self.factor = flushed;
+            self.transition_sum = Mat::zeros();
+            self.tilt_noise_var = T::zero();
+            self.yaw_noise_var = T::zero();
+        } else {
+            self.factor = Mat::select(lanes, &flushed, &self.factor);
+            self.transition_sum = Mat::select(lanes, &Mat::zeros(), &self.transition_sum);
+            self.tilt_noise_var = T::select(lanes, T::zero(), self.tilt_noise_var);
+            self.yaw_noise_var = T::select(lanes, T::zero(), self.yaw_noise_var);
+        }
+    }
+}
