@@ -41,7 +41,8 @@ params! {
         bias_walk: f64 = 1e-5, "rad/s/√s", [0.0, 10.0];
         /// The bias random walk's noise is folded into the covariance factor every this many
         /// samples, the variance of the samples between accumulated (and at once where a
-        /// bias step or re-acquisition inflates the bias); the attitude noise every sample.
+        /// bias step or re-acquisition inflates the bias); the attitude noise accumulates
+        /// every sample and is folded with the deferred time update at the measurement ticks.
         /// The fold of all six states costs about a fifth of an update, the attitude's alone
         /// a sixth of that. 1 is every sample. The accuracy cost of 2, 4 and 8 is in
         /// `docs/flagship_cost.md`.

@@ -31,8 +31,7 @@ impl<T: Lane> SqrtEskf<T> {
             .transpose()?;
         self.move_to(q);
         // The factor is set from here on: the time update deferred so far first.
-        self.state
-            .fold_pending(<T::Mask as Mask>::splat(true), None);
+        self.flush_time_update();
         let st = &mut self.state;
         match sigma {
             Some(sigma) => {
@@ -89,8 +88,7 @@ impl<T: Lane> SqrtEskf<T> {
         // The attitude block `P_θθ = S_θθ·S_θθᵀ + S_θb·S_θbᵀ` refactored as an upper
         // triangle of its own (`S_θb` then zero: no correlation), the bias rows `σ·I`; the
         // time update deferred so far first.
-        self.state
-            .fold_pending(<T::Mask as Mask>::splat(true), None);
+        self.flush_time_update();
         let st = &mut self.state;
         let s = &st.factor;
         let p = Mat::<T, 3, 3>::from_fn(|i, j| {

@@ -1,7 +1,7 @@
 //! The flagship's square-root time update, deferred to the samples where a measurement update
 //! may read the covariance factor (the design on [`SqrtEskf::time_update`]).
 
-use super::update::every_nth;
+use super::update::{every_nth, row_norm2};
 use super::*;
 
 impl<T: Lane> SqrtEskf<T> {
@@ -16,7 +16,9 @@ impl<T: Lane> SqrtEskf<T> {
     /// triangular: 18 products), then the noise is folded in by [`add_diagonal_noise`] (the
     /// earth-frame attitude noise is isotropic, `R·Rᵀ = I`), with extra variances on
     /// `δθ_x, δθ_y` and on `δb` (start-up and re-acquisition). Exact in exact arithmetic: `P`
-    /// at a flush is the `P` of a time update at every sample, to rounding. Each lane flushes
+    /// at a flush is the `P` of a time update at every sample, to rounding (the 9D heading
+    /// offset's variance takes the 6D heading's growth per flush, clamped at zero per flush
+    /// where it was per sample). Each lane flushes
     /// by its own ticks (`flush`, and its own bias noise), so a lane's factor is that of its
     /// scalar run, bit for bit. Returns the lanes that flushed.
     pub(super) fn time_update(
@@ -56,6 +58,19 @@ impl<T: Lane> SqrtEskf<T> {
             st.fold_pending(flush, due.any().then_some((due, qb)));
         }
         flush
+    }
+
+    /// The deferred time update applied in every lane now (before the state is set from
+    /// outside), with the 9D heading offset's variance grown by what it adds to the 6D
+    /// heading's, as at a flush in [`propagate`](Self::propagate).
+    pub(super) fn flush_time_update(&mut self) {
+        let before = row_norm2(&self.state.factor, 2);
+        self.state
+            .fold_pending(<T::Mask as Mask>::splat(true), None);
+        if self.nine_d {
+            let growth = (row_norm2(&self.state.factor, 2) - before).max(T::zero());
+            self.state.heading_offset_var += growth;
+        }
     }
 
     /// Whether any lane's inclination, at-rest bias or (9D) field tick falls on this sample,

@@ -603,6 +603,34 @@ mod tests {
     use crate::{ImuSample, OrientationFilter, Quat, Vec3};
     use rootfuse_lane::{Lane, Mat, wide::f32x8};
 
+    /// Setting the bias between two flushes keeps the heading variance the report showed:
+    /// the growth the deferred time update still held is handed to the 9D heading offset,
+    /// as at a flush (dropped, the report would fall by the samples since the last one).
+    #[test]
+    fn setting_the_bias_between_flushes_keeps_the_heading_variance() {
+        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+        for k in 0..402 {
+            let t = f64::from(k) * 0.01;
+            let sample = ImuSample::new(
+                Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos()),
+                Vec3::new(0.3 * t.cos(), -0.2, 9.8),
+                Vec3::new(0.0, 20.0, -40.0),
+            );
+            f.update(&sample, 0.01);
+        }
+        assert!(
+            f.state.yaw_noise_var > 0.0,
+            "mid-interval: something is pending"
+        );
+        let before = f.attitude_covariance().unwrap().m[2][2];
+        f.set_bias(f.bias(), Some(0.01)).unwrap();
+        let after = f.attitude_covariance().unwrap().m[2][2];
+        assert!(
+            (after - before).abs() <= 1e-12 * before,
+            "{before} → {after}"
+        );
+    }
+
     /// The time update deferred over several samples (the transitions summed, the attitude
     /// noise's variances added, one flush) gives the covariance of a time update at every
     /// sample, to rounding: over 1 to 12 samples of a turning orientation with the start-up's
