@@ -29,15 +29,7 @@ impl<T: Lane> SqrtEskf<T> {
         // make of it, without the flush's reflections (where nothing is pending, `B' = B` and
         // these are the same sums in the same order as `S·Sᵀ`'s).
         let st = &self.state;
-        let (s, m) = (&st.factor, &st.transition_sum);
-        let b = Mat::<T, 3, 3>::from_fn(|i, c| {
-            let j = c + 3;
-            let mut v = T::zero();
-            for k in 3..=j {
-                v += m.m[i][k - 3] * s.m[k][j];
-            }
-            s.m[i][j] - v
-        });
+        let (s, b) = (&st.factor, st.transitioned_block());
         let mut a = Mat::<T, 3, 3>::from_fn(|i, j| {
             let mut v = T::zero();
             for k in i.max(j)..3 {

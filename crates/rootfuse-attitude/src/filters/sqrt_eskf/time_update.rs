@@ -91,6 +91,21 @@ impl<T: Lane> SqrtEskf<T> {
 }
 
 impl<T: Lane> State<T> {
+    /// The factor's attitude–bias block after the transitions summed since the last flush,
+    /// `B − M·D` (`D` upper triangular: 18 products): what a flush writes there, and what the
+    /// report reads.
+    pub(super) fn transitioned_block(&self) -> Mat<T, 3, 3> {
+        let (s, m) = (&self.factor, &self.transition_sum);
+        Mat::from_fn(|i, c| {
+            let j = c + 3;
+            let mut v = T::zero();
+            for k in 3..=j {
+                v += m.m[i][k - 3] * s.m[k][j];
+            }
+            s.m[i][j] - v
+        })
+    }
+
     /// Applies the time update accumulated since the last flush ([`SqrtEskf::time_update`])
     /// in the lanes `lanes` (the others keep theirs, bit for bit): `B ← B − M·D`, then the
     /// attitude noise folded in, and in the lanes of `bias` also the bias noise `q_b` (rad/s)
@@ -98,14 +113,10 @@ impl<T: Lane> State<T> {
     pub(super) fn fold_pending(&mut self, lanes: T::Mask, bias: Option<(T::Mask, T)>) {
         let mut flushed = self.factor;
         let s = &mut flushed;
-        let m = &self.transition_sum;
+        let b = self.transitioned_block();
         for i in 0..3 {
             for j in 3..6 {
-                let mut v = T::zero();
-                for k in 3..=j {
-                    v += m.m[i][k - 3] * s.m[k][j];
-                }
-                s.m[i][j] -= v;
+                s.m[i][j] = b.m[i][j - 3];
             }
         }
         let (qxy, qz) = (self.tilt_noise_var.sqrt(), self.yaw_noise_var.sqrt());

@@ -603,13 +603,11 @@ mod tests {
     use crate::{ImuSample, OrientationFilter, Quat, Vec3};
     use rootfuse_lane::{Lane, Mat, wide::f32x8};
 
-    /// Setting the bias between two flushes keeps the heading variance the report showed:
-    /// the growth the deferred time update still held is handed to the 9D heading offset,
-    /// as at a flush (dropped, the report would fall by the samples since the last one).
-    #[test]
-    fn setting_the_bias_between_flushes_keeps_the_heading_variance() {
+    /// A 9D `f64` flagship after `samples` samples at 100 Hz of a slow turn with a slight
+    /// tilt and a dipping field.
+    fn turning_filter(samples: u32) -> SqrtEskf<f64> {
         let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-        for k in 0..402 {
+        for k in 0..samples {
             let t = f64::from(k) * 0.01;
             let sample = ImuSample::new(
                 Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos()),
@@ -618,6 +616,15 @@ mod tests {
             );
             f.update(&sample, 0.01);
         }
+        f
+    }
+
+    /// Setting the bias between two flushes keeps the heading variance the report showed:
+    /// the growth the deferred time update still held is handed to the 9D heading offset,
+    /// as at a flush (dropped, the report would fall by the samples since the last one).
+    #[test]
+    fn setting_the_bias_between_flushes_keeps_the_heading_variance() {
+        let mut f = turning_filter(402);
         assert!(
             f.state.yaw_noise_var > 0.0,
             "mid-interval: something is pending"
@@ -637,16 +644,7 @@ mod tests {
     /// extra tilt noise, including a bias-noise tick and a bias inflation on the way.
     #[test]
     fn a_deferred_time_update_is_the_time_update_of_every_sample() {
-        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-        for k in 0..400 {
-            let t = f64::from(k) * 0.01;
-            let sample = ImuSample::new(
-                Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos()),
-                Vec3::new(0.3 * t.cos(), -0.2, 9.8),
-                Vec3::new(0.0, 20.0, -40.0),
-            );
-            f.update(&sample, 0.01);
-        }
+        let f = turning_filter(400);
         let p = |g: &SqrtEskf<f64>| {
             let s = g.covariance_factor();
             s * s.transpose()
