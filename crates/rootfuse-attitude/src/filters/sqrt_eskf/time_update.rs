@@ -95,15 +95,7 @@ impl<T: Lane> State<T> {
     /// `B − M·D` (`D` upper triangular: 18 products): what a flush writes there, and what the
     /// report reads.
     pub(super) fn transitioned_block(&self) -> Mat<T, 3, 3> {
-        let (s, m) = (&self.factor, &self.transition_sum);
-        Mat::from_fn(|i, c| {
-            let j = c + 3;
-            let mut v = T::zero();
-            for k in 3..=j {
-                v += m.m[i][k - 3] * s.m[k][j];
-            }
-            s.m[i][j] - v
-        })
+        transitioned(&self.factor, &self.transition_sum)
     }
 
     /// Applies the time update accumulated since the last flush ([`SqrtEskf::time_update`])
@@ -111,36 +103,64 @@ impl<T: Lane> State<T> {
     /// attitude noise folded in, and in the lanes of `bias` also the bias noise `q_b` (rad/s)
     /// on `δb`; the sums start again.
     pub(super) fn fold_pending(&mut self, lanes: T::Mask, bias: Option<(T::Mask, T)>) {
+        // Every lane, and the bias noise in all or none of them (a scalar filter's only
+        // cases): folded in place, without the copies and selects the mixed cases need (the
+        // smoother's 9D passes flush at every sample).
+        let uniform_bias = bias.map_or(true, |(due, _)| due.all());
+        if lanes.all() && uniform_bias {
+            let (qb, noise) = (bias.map(|(_, qb)| qb), self.noise_std());
+            Self::fold_into(&mut self.factor, &self.transition_sum, noise, qb);
+            self.transition_sum = Mat::zeros();
+            self.tilt_noise_var = T::zero();
+            self.yaw_noise_var = T::zero();
+            return;
+        }
         let mut flushed = self.factor;
-        let s = &mut flushed;
-        let b = self.transitioned_block();
+        match bias {
+            Some((due, qb)) => {
+                let mut all = flushed;
+                Self::fold_into(&mut all, &self.transition_sum, self.noise_std(), Some(qb));
+                Self::fold_into(&mut flushed, &self.transition_sum, self.noise_std(), None);
+                flushed = Mat::select(due, &all, &flushed);
+            }
+            None => Self::fold_into(&mut flushed, &self.transition_sum, self.noise_std(), None),
+        }
+        self.factor = Mat::select(lanes, &flushed, &self.factor);
+        self.transition_sum = Mat::select(lanes, &Mat::zeros(), &self.transition_sum);
+        self.tilt_noise_var = T::select(lanes, T::zero(), self.tilt_noise_var);
+        self.yaw_noise_var = T::select(lanes, T::zero(), self.yaw_noise_var);
+    }
+
+    /// The pending attitude-noise standard deviations, `(tilt, yaw)` (rad).
+    fn noise_std(&self) -> (T, T) {
+        (self.tilt_noise_var.sqrt(), self.yaw_noise_var.sqrt())
+    }
+
+    /// `s` after the summed transitions `m` ([`transitioned`]) and the noise folded in:
+    /// attitude `(tilt, yaw)` std, and the bias std `qb` (rad/s) where given.
+    fn fold_into(s: &mut Mat<T, 6, 6>, m: &Mat<T, 3, 3>, (qxy, qz): (T, T), qb: Option<T>) {
+        let b = transitioned(s, m);
         for i in 0..3 {
             for j in 3..6 {
                 s.m[i][j] = b.m[i][j - 3];
             }
         }
-        let (qxy, qz) = (self.tilt_noise_var.sqrt(), self.yaw_noise_var.sqrt());
-        match bias {
-            Some((due, qb)) => {
-                let mut all = *s;
-                add_diagonal_noise(&mut all, &[qxy, qxy, qz, qb, qb, qb]);
-                if !due.all() {
-                    add_diagonal_noise(s, &[qxy, qxy, qz]);
-                }
-                *s = Mat::select(due, &all, s);
-            }
+        match qb {
+            Some(qb) => add_diagonal_noise(s, &[qxy, qxy, qz, qb, qb, qb]),
             None => add_diagonal_noise(s, &[qxy, qxy, qz]),
         }
-        if lanes.all() {
-            self.factor = flushed;
-            self.transition_sum = Mat::zeros();
-            self.tilt_noise_var = T::zero();
-            self.yaw_noise_var = T::zero();
-        } else {
-            self.factor = Mat::select(lanes, &flushed, &self.factor);
-            self.transition_sum = Mat::select(lanes, &Mat::zeros(), &self.transition_sum);
-            self.tilt_noise_var = T::select(lanes, T::zero(), self.tilt_noise_var);
-            self.yaw_noise_var = T::select(lanes, T::zero(), self.yaw_noise_var);
-        }
     }
+}
+
+/// The attitude–bias block `B − M·D` of the factor `s = [[A, B], [0, D]]` after the summed
+/// transitions `m = M` (`D` upper triangular: 18 products).
+fn transitioned<T: Lane>(s: &Mat<T, 6, 6>, m: &Mat<T, 3, 3>) -> Mat<T, 3, 3> {
+    Mat::from_fn(|i, c| {
+        let j = c + 3;
+        let mut v = T::zero();
+        for k in 3..=j {
+            v += m.m[i][k - 3] * s.m[k][j];
+        }
+        s.m[i][j] - v
+    })
 }
