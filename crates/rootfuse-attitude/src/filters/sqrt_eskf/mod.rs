@@ -158,15 +158,24 @@ params! {
         /// sensor reading gravity 0.5 % high that never rests gets (2.2°)² more: give it 0.
         acc_excess_scale: f64 = 0.15, "1", [0.0, 100.0];
         /// Offline only (the forward–backward smoother, [`SqrtEskfParams::for_smoothing`]):
-        /// both passes run with `tau_acc` and `tau_acc_long` times this. Each pass's low-pass
-        /// lag is cancelled by the other's, so offline longer time constants remove more
-        /// motion acceleration at no cost in lag (cross-validated on BROAD, docs/accuracy.md).
-        /// The filter itself does not read it.
+        /// both passes run their long window with `tau_acc_long` times this (with one window,
+        /// `tau_acc_long = 0`, their only window with `tau_acc` times this). Each pass's
+        /// low-pass lag is cancelled by the other's, so offline longer time constants remove
+        /// more motion acceleration at no cost in lag (cross-validated on BROAD,
+        /// docs/accuracy.md). The filter itself does not read it.
         smoothing_tau_scale: f64 = 1.25, "1", [1.0, 10.0];
+        /// Offline only, with two windows: both passes run their short window with `tau_acc`
+        /// times this. Shorter than online: where rotation dominates (the short window's
+        /// regime) the lag cancels between the passes and the gyroscope refinement
+        /// (`smoothing_gyro_tau`) removes what motion acceleration the short window lets
+        /// through, while the gyroscope's own errors build up over a shorter time
+        /// (cross-validated on BROAD with the simulated hard cases as a constraint,
+        /// docs/accuracy.md). The filter itself does not read it.
+        smoothing_short_tau_scale: f64 = 0.25, "1", [0.05, 10.0];
         /// Offline only: the smoother's fused estimate refined by the gyroscope with this time
         /// constant ([`OrientationFilter::smoothing_gyro_tau`](crate::OrientationFilter);
         /// 0 keeps it), so motion acceleration the passes let through above `1/(2π·τ)` goes.
-        smoothing_gyro_tau: f64 = 1.4, "s", [0.0, 1e3];
+        smoothing_gyro_tau: f64 = 1.7, "s", [0.0, 1e3];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted
@@ -505,8 +514,10 @@ lane_state! {
 }
 
 impl SqrtEskfParams {
-    /// The parameters each pass of the offline smoother runs with: both accelerometer time
-    /// constants (`tau_acc`, `tau_acc_long`) scaled by `smoothing_tau_scale`, no heading
+    /// The parameters each pass of the offline smoother runs with: the long window's time
+    /// constant `tau_acc_long` scaled by `smoothing_tau_scale` and the short one's `tau_acc` by
+    /// `smoothing_short_tau_scale` (with one window, `tau_acc_long = 0`, by
+    /// `smoothing_tau_scale`), no heading
     /// model error (`heading_model_error_scale` 0) and no sustained-acceleration term
     /// (`acc_excess_scale` 0), the field tested at every reading (`mag_update_every` 1),
     /// everything else as given.
@@ -523,15 +534,22 @@ impl SqrtEskfParams {
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
     /// let p = SqrtEskfParams::default();
-    /// assert_eq!(p.for_smoothing().tau_acc, p.tau_acc * p.smoothing_tau_scale);
+    /// assert_eq!(p.for_smoothing().tau_acc, p.tau_acc * p.smoothing_short_tau_scale);
     /// assert_eq!(p.for_smoothing().tau_acc_long, p.tau_acc_long * p.smoothing_tau_scale);
+    /// let one_window = SqrtEskfParams { tau_acc_long: 0.0, ..p };
+    /// assert_eq!(one_window.for_smoothing().tau_acc, p.tau_acc * p.smoothing_tau_scale);
     /// assert_eq!(p.for_smoothing().heading_model_error_scale, 0.0);
     /// assert_eq!(p.for_smoothing().acc_excess_scale, 0.0);
     /// assert_eq!(p.for_smoothing().mag_update_every, 1.0);
     /// ```
     pub fn for_smoothing(&self) -> Self {
         Self {
-            tau_acc: self.tau_acc * self.smoothing_tau_scale,
+            tau_acc: self.tau_acc
+                * if self.tau_acc_long > 0.0 {
+                    self.smoothing_short_tau_scale
+                } else {
+                    self.smoothing_tau_scale
+                },
             tau_acc_long: self.tau_acc_long * self.smoothing_tau_scale,
             heading_model_error_scale: 0.0,
             acc_excess_scale: 0.0,
