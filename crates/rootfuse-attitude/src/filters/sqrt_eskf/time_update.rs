@@ -106,7 +106,7 @@ impl<T: Lane> State<T> {
         // Every lane, and the bias noise in all or none of them (a scalar filter's only
         // cases): folded in place, without the copies and selects the mixed cases need (the
         // smoother's 9D passes flush at every sample).
-        let uniform_bias = bias.map_or(true, |(due, _)| due.all());
+        let uniform_bias = bias.is_none_or(|(due, _)| due.all());
         if lanes.all() && uniform_bias {
             let (qb, noise) = (bias.map(|(_, qb)| qb), self.noise_std());
             Self::fold_into(&mut self.factor, &self.transition_sum, noise, qb);
