@@ -6,19 +6,19 @@ impl SqrtEskfParams {
     /// The parameters each pass of the offline smoother runs with: the long window's time
     /// constant `tau_acc_long` scaled by `smoothing_tau_scale` and the short one's `tau_acc` by
     /// `smoothing_short_tau_scale` (with one window, `tau_acc_long = 0`, by
-    /// `smoothing_tau_scale`), no heading
-    /// model error (`heading_model_error_scale` 0) and no sustained-acceleration term
-    /// (`acc_excess_scale` 0), the field tested at every reading (`mag_update_every` 1),
-    /// everything else as given.
+    /// `smoothing_tau_scale`), no heading model error (`heading_model_error_scale` 0) and no
+    /// sustained-acceleration term (`acc_excess_scale` 0), the field tested at every reading
+    /// (`mag_update_every` 1), everything else as given.
     ///
     /// The two model errors are left out because the passes' reported covariances are the
     /// smoother's weights: an error term both passes share flattens the weights toward equal
-    /// and hides which pass has just been corrected (BROAD 9D offline 1.70° without the
-    /// heading term, 1.87° with it; BROAD offline inclination 0.543° without the
-    /// acceleration term, 0.597° with it at 0.15; `docs/accuracy.md`). For the same reason each pass corrects its
-    /// heading at every reading: a correction every `mag_update_every` readings makes the
-    /// heading variance a saw-tooth that the weights follow (BROAD 9D offline 1.641° at 1,
-    /// 1.653° at 4; `docs/flagship_cost.md`).
+    /// and hides which pass has just been corrected (measured with the passes' earlier
+    /// windows: BROAD 9D offline 1.70° without the heading term, 1.87° with it; BROAD offline
+    /// inclination 0.543° without the acceleration term, 0.597° with it at 0.15;
+    /// `docs/accuracy.md`). For the same reason each pass corrects its heading at every
+    /// reading: a correction every `mag_update_every` readings makes the heading variance a
+    /// saw-tooth that the weights follow (then: BROAD 9D offline 1.641° at 1, 1.653° at 4;
+    /// `docs/flagship_cost.md`).
     ///
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
