@@ -275,6 +275,13 @@ impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
             *out = f;
         }
     }
+    #[inline]
+    fn push_quat(&mut self, k: usize, q: rootfuse_attitude::Quat<f64>) {
+        let of = E::of;
+        if let Some(out) = self.quat.get_mut(4 * k..4 * k + 4) {
+            out.copy_from_slice(&[of(q.w), of(q.x), of(q.y), of(q.z)]);
+        }
+    }
     fn finish(&mut self, rejections: RejectionTotals) {
         self.rejections = rejections;
     }
