@@ -68,9 +68,14 @@ impl<T: Lane> SqrtEskf<T> {
         self.state
             .fold_pending(<T::Mask as Mask>::splat(true), None);
         if self.nine_d {
-            let growth = (row_norm2(&self.state.factor, 2) - before).max(T::zero());
-            self.state.heading_offset_var += growth;
+            self.state.heading_offset_var += self.heading_growth(before);
         }
+    }
+
+    /// What the flushes since the 6D heading variance was `pzz_before` (rad²) have added to
+    /// it, at least zero: the 9D heading offset's variance grows by as much.
+    pub(super) fn heading_growth(&self, pzz_before: T) -> T {
+        (row_norm2(&self.state.factor, 2) - pzz_before).max(T::zero())
     }
 
     /// Whether any lane's inclination, at-rest bias or (9D) field tick falls on this sample,
@@ -103,52 +108,67 @@ impl<T: Lane> State<T> {
     /// attitude noise folded in, and in the lanes of `bias` also the bias noise `q_b` (rad/s)
     /// on `δb`; the sums start again.
     pub(super) fn fold_pending(&mut self, lanes: T::Mask, bias: Option<(T::Mask, T)>) {
+        let noise = self.noise_std();
         // Every lane, and the bias noise in all or none of them (a scalar filter's only
         // cases): folded in place, without the copies and selects the mixed cases need (the
         // smoother's 9D passes flush at every sample).
-        let uniform_bias = bias.is_none_or(|(due, _)| due.all());
-        if lanes.all() && uniform_bias {
-            let (qb, noise) = (bias.map(|(_, qb)| qb), self.noise_std());
-            Self::fold_into(&mut self.factor, &self.transition_sum, noise, qb);
-            self.transition_sum = Mat::zeros();
-            self.tilt_noise_var = T::zero();
-            self.yaw_noise_var = T::zero();
-            return;
-        }
-        let mut flushed = self.factor;
-        match bias {
-            Some((due, qb)) => {
-                let mut all = flushed;
-                Self::fold_into(&mut all, &self.transition_sum, self.noise_std(), Some(qb));
-                Self::fold_into(&mut flushed, &self.transition_sum, self.noise_std(), None);
-                flushed = Mat::select(due, &all, &flushed);
+        if lanes.all() && bias.is_none_or(|(due, _)| due.all()) {
+            apply_transition(&mut self.factor, &self.transition_sum);
+            add_noise(&mut self.factor, noise, bias.map(|(_, qb)| qb));
+        } else {
+            let mut flushed = self.factor;
+            apply_transition(&mut flushed, &self.transition_sum);
+            match bias {
+                Some((due, qb)) => {
+                    let mut all = flushed;
+                    add_noise(&mut all, noise, Some(qb));
+                    add_noise(&mut flushed, noise, None);
+                    flushed = Mat::select(due, &all, &flushed);
+                }
+                None => add_noise(&mut flushed, noise, None),
             }
-            None => Self::fold_into(&mut flushed, &self.transition_sum, self.noise_std(), None),
+            self.factor = Mat::select(lanes, &flushed, &self.factor);
         }
-        self.factor = Mat::select(lanes, &flushed, &self.factor);
-        self.transition_sum = Mat::select(lanes, &Mat::zeros(), &self.transition_sum);
-        self.tilt_noise_var = T::select(lanes, T::zero(), self.tilt_noise_var);
-        self.yaw_noise_var = T::select(lanes, T::zero(), self.yaw_noise_var);
+        self.clear_pending(lanes);
+    }
+
+    /// The sums of the deferred time update started again in the lanes `lanes` (after a
+    /// flush, or where the factor itself starts again).
+    pub(super) fn clear_pending(&mut self, lanes: T::Mask) {
+        let zero = T::zero();
+        if lanes.all() {
+            self.transition_sum = Mat::zeros();
+            self.tilt_noise_var = zero;
+            self.yaw_noise_var = zero;
+        } else {
+            self.transition_sum = Mat::select(lanes, &Mat::zeros(), &self.transition_sum);
+            self.tilt_noise_var = T::select(lanes, zero, self.tilt_noise_var);
+            self.yaw_noise_var = T::select(lanes, zero, self.yaw_noise_var);
+        }
     }
 
     /// The pending attitude-noise standard deviations, `(tilt, yaw)` (rad).
     fn noise_std(&self) -> (T, T) {
         (self.tilt_noise_var.sqrt(), self.yaw_noise_var.sqrt())
     }
+}
 
-    /// `s` after the summed transitions `m` ([`transitioned`]) and the noise folded in:
-    /// attitude `(tilt, yaw)` std, and the bias std `qb` (rad/s) where given.
-    fn fold_into(s: &mut Mat<T, 6, 6>, m: &Mat<T, 3, 3>, (qxy, qz): (T, T), qb: Option<T>) {
-        let b = transitioned(s, m);
-        for i in 0..3 {
-            for j in 3..6 {
-                s.m[i][j] = b.m[i][j - 3];
-            }
+/// `B ← B − M·D` in the factor `s` ([`transitioned`]: each entry reads only itself and `D`).
+fn apply_transition<T: Lane>(s: &mut Mat<T, 6, 6>, m: &Mat<T, 3, 3>) {
+    let b = transitioned(s, m);
+    for i in 0..3 {
+        for j in 3..6 {
+            s.m[i][j] = b.m[i][j - 3];
         }
-        match qb {
-            Some(qb) => add_diagonal_noise(s, &[qxy, qxy, qz, qb, qb, qb]),
-            None => add_diagonal_noise(s, &[qxy, qxy, qz]),
-        }
+    }
+}
+
+/// The attitude noise `(tilt, yaw)` std (rad), and the bias std `qb` (rad/s) where given,
+/// folded into the factor `s`.
+fn add_noise<T: Lane>(s: &mut Mat<T, 6, 6>, (qxy, qz): (T, T), qb: Option<T>) {
+    match qb {
+        Some(qb) => add_diagonal_noise(s, &[qxy, qxy, qz, qb, qb, qb]),
+        None => add_diagonal_noise(s, &[qxy, qxy, qz]),
     }
 }
 

@@ -95,9 +95,7 @@ impl<T: Lane> SqrtEskf<T> {
             st.heading_offset = T::select(fresh, zero, st.heading_offset);
             let restart = fresh & !st.preset_covariance;
             st.factor = Mat::select(restart, &self.coef.initial_factor(), &st.factor);
-            st.transition_sum = Mat::select(restart, &Mat::zeros(), &st.transition_sum);
-            st.tilt_noise_var = T::select(restart, zero, st.tilt_noise_var);
-            st.yaw_noise_var = T::select(restart, zero, st.yaw_noise_var);
+            st.clear_pending(restart);
             // The bias is kept: zero unless `set_bias` gave one before the first sample (the
             // strapdown integration before this sample already used it).
             st.age = T::select(fresh, zero, st.age);
@@ -197,8 +195,7 @@ impl<T: Lane> SqrtEskf<T> {
             let pzz_before = row_norm2(&self.state.factor, 2);
             let flushed = self.time_update(&r6, dt, (extra, extra_b), flush);
             if flushed.any() {
-                let growth = (row_norm2(&self.state.factor, 2) - pzz_before).max(zero);
-                T::select(flushed, growth, zero)
+                T::select(flushed, self.heading_growth(pzz_before), zero)
             } else {
                 zero
             }
