@@ -229,13 +229,17 @@ fn check_cov(f: &SqrtEskf<f32>, started: bool) -> Result<(), TestCaseError> {
         a.m[2][2] > 0.0
     };
     prop_assert!(heading_ok, "heading variance {}", a.m[2][2]);
-    // The inclination block is that of the full covariance, bit for bit off the diagonal (it
-    // is computed from the factor's first rows alone); the diagonal adds the model error,
-    // which is never negative.
-    prop_assert_eq!(a.m[0][1].to_bits(), p.m[0][1].to_bits());
-    prop_assert_eq!(a.m[1][0].to_bits(), p.m[1][0].to_bits());
+    // The inclination block is that of the full covariance off the diagonal, and the diagonal
+    // adds the model error, which is never negative. Both to rounding: the report applies the
+    // deferred time update in closed form where `covariance` folds it in by reflections, so
+    // between two flushes the sums differ in their last bits (bit for bit where nothing is
+    // pending). By Cauchy–Schwarz no term of `P01` exceeds `√(P00·P11)`, which scales it.
+    let scale = (p.m[0][0] * p.m[1][1]).sqrt();
+    for (i, j) in [(0, 1), (1, 0)] {
+        prop_assert!((a.m[i][j] - p.m[i][j]).abs() <= 1e-5 * scale, "{i}{j}: {a:?} vs {p:?}");
+    }
     for i in 0..2 {
-        prop_assert!(a.m[i][i] >= p.m[i][i], "{i}: {} < {}", a.m[i][i], p.m[i][i]);
+        prop_assert!(a.m[i][i] >= p.m[i][i] * (1.0 - 1e-5), "{i}: {} < {}", a.m[i][i], p.m[i][i]);
     }
     Ok(())
 }
