@@ -236,10 +236,18 @@ fn check_cov(f: &SqrtEskf<f32>, started: bool) -> Result<(), TestCaseError> {
     // pending). By Cauchy–Schwarz no term of `P01` exceeds `√(P00·P11)`, which scales it.
     let scale = (p.m[0][0] * p.m[1][1]).sqrt();
     for (i, j) in [(0, 1), (1, 0)] {
-        prop_assert!((a.m[i][j] - p.m[i][j]).abs() <= 1e-5 * scale, "{i}{j}: {a:?} vs {p:?}");
+        prop_assert!(
+            (a.m[i][j] - p.m[i][j]).abs() <= 1e-5 * scale,
+            "{i}{j}: {a:?} vs {p:?}"
+        );
     }
     for i in 0..2 {
-        prop_assert!(a.m[i][i] >= p.m[i][i] * (1.0 - 1e-5), "{i}: {} < {}", a.m[i][i], p.m[i][i]);
+        prop_assert!(
+            a.m[i][i] >= p.m[i][i] * (1.0 - 1e-5),
+            "{i}: {} < {}",
+            a.m[i][i],
+            p.m[i][i]
+        );
     }
     Ok(())
 }
