@@ -1,6 +1,6 @@
 //! [`FleetRunner`]: a fleet of devices streamed through the batch engine in blocks of rows.
 
-use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch};
+use crate::batch::{Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch};
 use crate::recordings::{Columns, Estimate, Precision};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
@@ -443,6 +443,43 @@ impl ChannelSource for DeviceRows<'_> {
             self.block.t[self.rows[i] as usize] - self.block.t[self.rows[i - 1] as usize]
         }
     }
+    /// Each step's samples of every lane gathered first, then each coordinate built as one
+    /// vector (the default sets lane by lane, a vector read and written per value): the same
+    /// values, rounded the same way.
+    fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
+        let n = lanes.len();
+        if n != L::LANES || n > MAX_LANES || lanes.iter().any(|s| s.len() < start + tile.len()) {
+            for (lane, source) in lanes.iter().enumerate() {
+                source.read_into(start, lane, tile);
+            }
+            return;
+        }
+        let cast = |x: f64| <L::Scalar as Lane>::from_f64(x);
+        let mut x = [ImuSample::six_d(Vec3::zero(), Vec3::zero()); MAX_LANES];
+        let mut dts = [0.0; MAX_LANES];
+        for (k, (s, dt)) in tile.iter_mut().enumerate() {
+            for (l, source) in lanes.iter().enumerate() {
+                x[l] = source.sample(start + k);
+                dts[l] = source.dt(start + k);
+            }
+            s.gyr = gather(&x, |s| s.gyr);
+            s.acc = gather(&x, |s| s.acc);
+            s.mag = gather(&x, |s| s.mag);
+            *dt = L::from_fn(|l| cast(dts[l]));
+        }
+    }
+}
+
+/// One vector of lanes from each lane's `f64` sample (`pick` chooses which of its vectors),
+/// each value rounded to the lane's precision.
+#[inline(always)]
+fn gather<L: Lane>(x: &[ImuSample<f64>], pick: impl Fn(&ImuSample<f64>) -> Vec3<f64>) -> Vec3<L> {
+    let cast = |v: f64| <L::Scalar as Lane>::from_f64(v);
+    Vec3::new(
+        L::from_fn(|l| cast(pick(&x[l]).x)),
+        L::from_fn(|l| cast(pick(&x[l]).y)),
+        L::from_fn(|l| cast(pick(&x[l]).z)),
+    )
 }
 
 /// The typed part of a fleet: chunks of one concrete filter type.

@@ -101,6 +101,13 @@ impl Devices {
         self.labels.get(d as usize).map_or("", String::as_str)
     }
 
+    /// The device number of the integer key `v` when it is below [`SMALL_KEYS`] and seen.
+    #[inline]
+    fn small_id(&self, v: i64) -> Option<u32> {
+        let d = *self.small.get(usize::try_from(v).ok()?)?;
+        (d != u32::MAX).then_some(d)
+    }
+
     fn id(&mut self, key: DeviceKey) -> u32 {
         let small = match key {
             DeviceKey::Int(v) if (0..SMALL_KEYS).contains(&v) => Some(v as usize),
@@ -580,9 +587,13 @@ impl FleetReader {
             }
             imu.push(values);
         }
+        // Zipped, not indexed: no bounds check per value (each column has `n` values).
         let vec3 = |k: usize| -> Vec<Vec3<f64>> {
-            (0..n)
-                .map(|r| Vec3::new(imu[k][r], imu[k + 1][r], imu[k + 2][r]))
+            imu[k]
+                .iter()
+                .zip(imu[k + 1].iter())
+                .zip(imu[k + 2].iter())
+                .map(|((&x, &y), &z)| Vec3::new(x, y, z))
                 .collect()
         };
         let block_mag = self.has_mag.then(|| vec3(6));
@@ -651,24 +662,21 @@ fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<
         return Err(Some(r));
     }
     let mut ids = Vec::with_capacity(col.len());
-    // Rows of one device usually come in runs: look up only when the key changes.
-    let mut last: Option<(DeviceKey, u32)> = None;
-    let mut push = |key: DeviceKey, ids: &mut Vec<u32>| {
-        let d = match &last {
-            Some((k, d)) if *k == key => *d,
-            _ => {
-                let d = devices.id(key.clone());
-                last = Some((key, d));
-                d
-            }
-        };
-        ids.push(d);
-    };
     let ty = col.data_type();
     if ty.is_integer() && *ty != DataType::UInt64 {
         let ints = arrow::compute::cast(col, &DataType::Int64).map_err(|_| None)?;
+        // Rows of one device usually come in runs: look up only when the key changes; a
+        // small key seen before is one table read (rows of interleaved devices change key
+        // at every row).
+        let mut last: Option<(i64, u32)> = None;
         for &v in ints.as_primitive::<Int64Type>().values() {
-            push(DeviceKey::Int(v), &mut ids);
+            let d = match (last, devices.small_id(v)) {
+                (Some((k, d)), _) if k == v => d,
+                (_, Some(d)) => d,
+                _ => devices.id(DeviceKey::Int(v)),
+            };
+            last = Some((v, d));
+            ids.push(d);
         }
     } else if ty.is_integer()
         || matches!(
@@ -680,8 +688,16 @@ fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<
         if let Some(r) = (0..text.len()).find(|&r| text.is_null(r)) {
             return Err(Some(r));
         }
+        // Rows of one device usually come in runs: look up only when the key changes.
+        let mut last: Option<(&str, u32)> = None;
         for v in text.as_string::<i32>().iter() {
-            push(DeviceKey::Text(v.unwrap_or_default().to_string()), &mut ids);
+            let v = v.unwrap_or_default();
+            let d = match last {
+                Some((k, d)) if k == v => d,
+                _ => devices.id(DeviceKey::Text(v.to_string())),
+            };
+            last = Some((v, d));
+            ids.push(d);
         }
     } else {
         return Err(None);

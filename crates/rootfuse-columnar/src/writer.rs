@@ -32,6 +32,37 @@ pub(crate) fn parquet_properties() -> WriterProperties {
         .build()
 }
 
+/// Where an estimate column's values come from (its name resolved once per block).
+#[derive(Clone, Copy)]
+enum Source {
+    Time,
+    /// `qw, qx, qy, qz`.
+    Quat(usize),
+    /// `bx, by, bz`.
+    Bias(usize),
+    /// `p_xx, p_xy, p_xz, p_yy, p_yz, p_zz`.
+    Covariance(usize),
+    Flags,
+}
+
+impl Source {
+    /// The source of the column `name` (one of [`estimate_names`]; anything else is `flags`).
+    fn of(name: &str) -> Self {
+        let find = |list: &[&str]| list.iter().position(|n| *n == name);
+        if name == "t" {
+            Self::Time
+        } else if let Some(k) = find(&["qw", "qx", "qy", "qz"]) {
+            Self::Quat(k)
+        } else if let Some(k) = find(&["bx", "by", "bz"]) {
+            Self::Bias(k)
+        } else if let Some(k) = find(&["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"]) {
+            Self::Covariance(k)
+        } else {
+            Self::Flags
+        }
+    }
+}
+
 /// The estimate columns after `t` for `columns` (`qw..qz`, then `bx..bz`, `p_xx..p_zz`,
 /// `flags` as asked), as [`rootfuse_io::write_estimates`] names them.
 pub fn estimate_names(columns: Columns, covariance: bool) -> Vec<&'static str> {
@@ -169,26 +200,15 @@ impl EstimateWriter {
             .filter(|n| *n != DEVICE)
             .collect();
         let kept: Vec<usize> = rows.clone().filter(|&r| est.kept[r]).collect();
-        let value = |name: &str, r: usize| -> f64 {
-            let q = est.quat[r];
-            let cov = |k: usize| est.covariance.get(r).map_or(f64::NAN, |p| p[k]);
-            let bias = est.bias.get(r).copied().unwrap_or_default();
-            match name {
-                "t" => block.t[r],
-                "qw" => q.w,
-                "qx" => q.x,
-                "qy" => q.y,
-                "qz" => q.z,
-                "bx" => bias.x,
-                "by" => bias.y,
-                "bz" => bias.z,
-                "p_xx" => cov(0),
-                "p_xy" => cov(1),
-                "p_xz" => cov(2),
-                "p_yy" => cov(3),
-                "p_yz" => cov(4),
-                "p_zz" => cov(5),
-                _ => f64::from(est.flags.get(r).copied().unwrap_or(0)),
+        // Each column's source resolved once, not by its name at every row.
+        let sources: Vec<Source> = names.iter().map(|n| Source::of(n)).collect();
+        let value = |source: Source, r: usize| -> f64 {
+            match source {
+                Source::Time => block.t[r],
+                Source::Quat(k) => est.quat[r].to_array()[k],
+                Source::Bias(k) => est.bias.get(r).map_or(0.0, |b| b.to_array()[k]),
+                Source::Covariance(k) => est.covariance.get(r).map_or(f64::NAN, |p| p[k]),
+                Source::Flags => f64::from(est.flags.get(r).copied().unwrap_or(0)),
             }
         };
         let write_error = |e: &dyn std::fmt::Display| ColumnarError::Write {
@@ -199,7 +219,7 @@ impl EstimateWriter {
             let mut row = Vec::with_capacity(names.len());
             for &r in &kept {
                 row.clear();
-                row.extend(names.iter().map(|n| value(n, r)));
+                row.extend(sources.iter().map(|&source| value(source, r)));
                 w.write_row(devices.label(block.device[r]), &row)?;
             }
             return Ok(());
@@ -217,14 +237,22 @@ impl EstimateWriter {
             let mask = BooleanArray::from(est.kept[rows].to_vec());
             arrays.push(arrow::compute::filter(&col, &mask).map_err(|e| write_error(&e))?);
         }
-        for name in &names {
-            if *name == "flags" {
-                let flags = UInt8Array::from_iter_values(kept.iter().map(|&r| est.flags[r]));
-                arrays.push(Arc::new(flags));
-            } else {
-                let values = Float64Array::from_iter_values(kept.iter().map(|&r| value(name, r)));
-                arrays.push(Arc::new(values));
-            }
+        for &source in &sources {
+            let array: ArrayRef = match source {
+                Source::Flags => Arc::new(UInt8Array::from_iter_values(
+                    kept.iter().map(|&r| est.flags[r]),
+                )),
+                Source::Time => Arc::new(Float64Array::from_iter_values(
+                    kept.iter().map(|&r| block.t[r]),
+                )),
+                Source::Quat(k) => Arc::new(Float64Array::from_iter_values(
+                    kept.iter().map(|&r| est.quat[r].to_array()[k]),
+                )),
+                _ => Arc::new(Float64Array::from_iter_values(
+                    kept.iter().map(|&r| value(source, r)),
+                )),
+            };
+            arrays.push(array);
         }
         let batch =
             RecordBatch::try_new(self.schema.clone(), arrays).map_err(|e| write_error(&e))?;
