@@ -231,9 +231,10 @@ fn check_cov(f: &SqrtEskf<f32>, started: bool) -> Result<(), TestCaseError> {
     prop_assert!(heading_ok, "heading variance {}", a.m[2][2]);
     // The inclination block is that of the full covariance off the diagonal, and the diagonal
     // adds the model error, which is never negative. Both to rounding: the report applies the
-    // deferred time update in closed form where `covariance` folds it in by reflections, so
-    // between two flushes the sums differ in their last bits (bit for bit where nothing is
-    // pending). By Cauchy–Schwarz no term of `P01` exceeds `√(P00·P11)`, which scales it.
+    // deferred time update in closed form where `covariance` folds it (and, with nothing
+    // pending, a zero noise) into a copy of the factor by reflections, which change its last
+    // bits. By Cauchy–Schwarz no term of `P01` exceeds `√(P00·P11)`, which scales it. (The
+    // same in `f64` at 1e-12 with a time update pending: the unit tests of `update.rs`.)
     let scale = (p.m[0][0] * p.m[1][1]).sqrt();
     for (i, j) in [(0, 1), (1, 0)] {
         prop_assert!(

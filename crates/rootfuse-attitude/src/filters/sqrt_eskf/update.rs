@@ -635,6 +635,55 @@ mod tests {
         );
     }
 
+    /// The report's inclination block, which applies a pending time update in closed form,
+    /// is the full covariance's (which folds it in by reflections) to rounding, with a time
+    /// update pending: in 6D (where the block keeps its heading correlations) and 9D.
+    #[test]
+    fn the_reported_inclination_block_is_the_covariances() {
+        for nine_d in [true, false] {
+            let mut f = turning_filter(402);
+            if !nine_d {
+                f = SqrtEskf::<f64>::new(&SqrtEskfParams {
+                    dof: crate::Dof::Six,
+                    ..SqrtEskfParams::default()
+                });
+                for k in 0..402 {
+                    let t = f64::from(k) * 0.01;
+                    let gyr = Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos());
+                    f.update(
+                        &ImuSample::six_d(gyr, Vec3::new(0.3 * t.cos(), -0.2, 9.8)),
+                        0.01,
+                    );
+                }
+            }
+            assert!(f.state.tilt_noise_var > 0.0, "something is pending");
+            let (a, p) = (f.attitude_covariance().unwrap(), f.covariance());
+            let scale = (p.m[0][0] * p.m[1][1]).sqrt();
+            assert!(
+                (a.m[0][1] - p.m[0][1]).abs() <= 1e-12 * scale,
+                "{a:?} vs {p:?}"
+            );
+            assert!(
+                (a.m[1][0] - p.m[1][0]).abs() <= 1e-12 * scale,
+                "{a:?} vs {p:?}"
+            );
+            // The report adds the model error (never negative) to the diagonal.
+            for i in 0..2 {
+                assert!(
+                    a.m[i][i] >= p.m[i][i] * (1.0 - 1e-12),
+                    "{i}: {a:?} vs {p:?}"
+                );
+            }
+            if !nine_d {
+                let scale = (p.m[0][0] * p.m[2][2]).sqrt();
+                assert!(
+                    (a.m[0][2] - p.m[0][2]).abs() <= 1e-12 * scale,
+                    "{a:?} vs {p:?}"
+                );
+            }
+        }
+    }
+
     /// The time update deferred over several samples (the transitions summed, the attitude
     /// noise's variances added, one flush) gives the covariance of a time update at every
     /// sample, to rounding: over 1 to 12 samples of a turning orientation with the start-up's
