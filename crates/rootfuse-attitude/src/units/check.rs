@@ -16,11 +16,37 @@ struct LogHistogram {
 const DECADE_BINS: f64 = 10.0;
 const LOG_MIN: f64 = -9.0;
 const LOG_MAX: f64 = 12.0;
+const BINS: usize = ((LOG_MAX - LOG_MIN) * DECADE_BINS) as usize;
+
+/// The bins' lower edges, `10^(LOG_MIN + b/DECADE_BINS)` for `b = 0..=BINS`.
+fn bin_edges() -> &'static [f64; BINS + 1] {
+    static EDGES: std::sync::OnceLock<[f64; BINS + 1]> = std::sync::OnceLock::new();
+    EDGES
+        .get_or_init(|| core::array::from_fn(|b| libm::pow(10.0, LOG_MIN + b as f64 / DECADE_BINS)))
+}
+
+/// The bin of a finite non-zero `x`: `⌊(log10|x| − LOG_MIN)·DECADE_BINS⌋`, clamped to the
+/// bins, found without a logarithm (a check reads four magnitudes per sample, and the
+/// logarithms were a twentieth of `rootfuse run` on a fleet): `|x|`'s binary exponent gives a
+/// bin at or below it, and the edges the rest (at most five steps). The same bin as the
+/// logarithm's except within rounding of an edge.
+fn bin_of(x: f64) -> usize {
+    let x = x.abs();
+    let edges = bin_edges();
+    // |x| ≥ 2^e, so log10|x| ≥ e·log10(2); one bin lower against the product's rounding.
+    let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    let below = ((f64::from(e) * core::f64::consts::LOG10_2 - LOG_MIN) * DECADE_BINS).floor() - 1.0;
+    let mut b = below.clamp(0.0, (BINS - 1) as f64) as usize;
+    while b + 1 < BINS && x >= edges[b + 1] {
+        b += 1;
+    }
+    b
+}
 
 impl LogHistogram {
     fn new() -> Self {
         Self {
-            bins: std::vec![0; ((LOG_MAX - LOG_MIN) * DECADE_BINS) as usize],
+            bins: std::vec![0; BINS],
             zero: 0,
             non_finite: 0,
         }
@@ -32,8 +58,7 @@ impl LogHistogram {
         } else if x == 0.0 {
             self.zero += 1;
         } else {
-            let b = ((libm::log10(x.abs()) - LOG_MIN) * DECADE_BINS).floor();
-            let b = b.clamp(0.0, (self.bins.len() - 1) as f64) as usize;
+            let b = bin_of(x);
             self.bins[b] = self.bins[b].saturating_add(1);
         }
     }
@@ -245,7 +270,7 @@ fn turned(u: Vec3<f64>, theta: Vec3<f64>) -> Vec3<f64> {
         return u + u.cross(theta);
     }
     let k = theta * (1.0 / phi);
-    let (sin, cos) = (libm::sin(phi), libm::cos(phi));
+    let (sin, cos) = libm::sincos(phi);
     u * cos + u.cross(k) * sin + k * (k.dot(u) * (1.0 - cos))
 }
 
@@ -622,6 +647,28 @@ mod tests {
             Unit::parse(Sensor::Accelerometer, "G").unwrap().factor(),
             STANDARD_GRAVITY
         );
+    }
+
+    /// The bin found from the exponent and the edges is the logarithm's, over every decade
+    /// and beyond both ends, except within rounding of an edge.
+    #[test]
+    fn bins_without_a_logarithm_are_the_logarithms() {
+        let mut x = 1e-12_f64;
+        let mut checked = 0;
+        while x < 1e15 {
+            let log = ((libm::log10(x) - LOG_MIN) * DECADE_BINS).floor();
+            let expected = log.clamp(0.0, (BINS - 1) as f64) as usize;
+            let position = (libm::log10(x) - LOG_MIN) * DECADE_BINS;
+            if (position - position.round()).abs() > 1e-9 {
+                assert_eq!(bin_of(x), expected, "{x}");
+                assert_eq!(bin_of(-x), expected, "{x}");
+                checked += 1;
+            }
+            x *= 1.0137;
+        }
+        assert!(checked > 3000, "{checked}");
+        assert_eq!(bin_of(f64::MIN_POSITIVE / 4.0), 0);
+        assert_eq!(bin_of(f64::MAX), BINS - 1);
     }
 
     #[test]
