@@ -58,6 +58,7 @@ impl Source {
         } else if let Some(k) = find(&["p_xx", "p_xy", "p_xz", "p_yy", "p_yz", "p_zz"]) {
             Self::Covariance(k)
         } else {
+            debug_assert_eq!(name, "flags", "not an estimate column");
             Self::Flags
         }
     }
