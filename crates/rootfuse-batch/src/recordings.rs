@@ -339,6 +339,23 @@ pub trait EstimateSink: Send {
         };
         self.push(k, &estimate);
     }
+    /// The orientations after step `k` of a chunk's channels, `sinks[i]` the sink of lane
+    /// `i`, for the lanes set in `active` (bit `i`), where [`Columns`] asked for nothing
+    /// else: the engine calls this once per step. By default each lane's value, in `f64`, to
+    /// its sink's [`push_quat`](Self::push_quat); a sink that stores quaternions directly can
+    /// move a whole step's lanes at once (the NumPy sink transposes them in registers).
+    #[inline]
+    fn push_quat_lanes<L: Lane>(sinks: &mut [Self], active: u64, k: usize, quat: &Quat<L>)
+    where
+        Self: Sized,
+    {
+        let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z].map(lane_values);
+        for (i, o) in sinks.iter_mut().enumerate() {
+            if (active >> i) & 1 == 1 {
+                o.push_quat(k, Quat::new(w[i], x[i], y[i], z[i]));
+            }
+        }
+    }
     /// The channel's counters once its last sample has run.
     fn finish(&mut self, rejections: RejectionTotals);
 }
@@ -441,13 +458,7 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource, K: EstimateSink>
             let quat_only = !(columns.bias || columns.covariance || columns.flags);
             chunk.run_sources(srcs, 0..steps, |k, chunk, active| {
                 if quat_only {
-                    let q = chunk.filter().quat();
-                    let [w, x, y, z] = [q.w, q.x, q.y, q.z].map(lane_values);
-                    for (i, o) in outs.iter_mut().enumerate() {
-                        if (active >> i) & 1 == 1 {
-                            o.push_quat(k, Quat::new(w[i], x[i], y[i], z[i]));
-                        }
-                    }
+                    K::push_quat_lanes(outs, active, k, &chunk.filter().quat());
                     return;
                 }
                 let view = Estimate::lanes(chunk.filter(), columns);

@@ -5,7 +5,8 @@ use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rootfuse_batch::{Columns, Estimate, EstimateSink, RejectionTotals};
+use rootfuse_attitude::Lane;
+use rootfuse_batch::{Columns, Estimate, EstimateSink, MAX_LANES, RejectionTotals};
 
 /// The float types series are written in: the engine's f64 estimates converted on the way
 /// in (exactly, for `f32` lanes' values into `f32`).
@@ -280,6 +281,42 @@ impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
         let of = E::of;
         if let Some(out) = self.quat.get_mut(4 * k..4 * k + 4) {
             out.copy_from_slice(&[of(q.w), of(q.x), of(q.y), of(q.z)]);
+        }
+    }
+    /// A full chunk of at least four lanes: the step's four vectors transposed in registers
+    /// ([`Lane::transpose_lanes`], the rest of the block zero), so vector `i` holds lane `i`'s
+    /// `[w, x, y, z, …]`, written to its sink as four values: the values of the default path,
+    /// without a pass through `f64` staging arrays and a call per lane.
+    #[inline]
+    fn push_quat_lanes<L: Lane>(
+        sinks: &mut [Self],
+        active: u64,
+        k: usize,
+        quat: &rootfuse_attitude::Quat<L>,
+    ) {
+        let n = L::LANES;
+        let mut block = [L::zero(); MAX_LANES];
+        block[..4].copy_from_slice(&[quat.w, quat.x, quat.y, quat.z]);
+        if n < 4 || n > MAX_LANES || sinks.len() != n || !L::transpose_lanes(&mut block[..n]) {
+            let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z];
+            for (i, o) in sinks.iter_mut().enumerate() {
+                if (active >> i) & 1 == 1 {
+                    let lane = |v: L| v.extract(i).into();
+                    o.push_quat(
+                        k,
+                        rootfuse_attitude::Quat::new(lane(w), lane(x), lane(y), lane(z)),
+                    );
+                }
+            }
+            return;
+        }
+        for (i, (o, v)) in sinks.iter_mut().zip(&block[..n]).enumerate() {
+            if (active >> i) & 1 == 1
+                && let Some(out) = o.quat.get_mut(4 * k..4 * k + 4)
+            {
+                let of = |j: usize| E::of(v.extract(j).into());
+                out.copy_from_slice(&[of(0), of(1), of(2), of(3)]);
+            }
         }
     }
     fn finish(&mut self, rejections: RejectionTotals) {

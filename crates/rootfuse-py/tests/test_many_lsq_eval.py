@@ -189,6 +189,22 @@ def test_run_many_lists_of_different_lengths_and_channel_params():
 
 
 @pytest.mark.parametrize("precision", ["f32", "f64"])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_run_many_quaternion_only_series_of_different_lengths(precision, dtype):
+    """The quaternion-only series (every lane of a step moved at once, transposed in
+    registers) equal the full series bit for bit: full chunks, a partial one, and lanes
+    that end at different steps."""
+    recs = [rf.simulate("fast-rotation", seed=s, duration_s=0.3 + 0.11 * s) for s in range(19)]
+    args = ([r["gyr"] for r in recs], [r["acc"] for r in recs], [r["mag"] for r in recs])
+    t = [r["t"] for r in recs]
+    quat_only = rf.run_many("madgwick", *args, t=t, precision=precision, dtype=dtype, bias=False, flags=False)
+    full = rf.run_many("madgwick", *args, t=t, precision=precision, dtype=dtype)
+    for q, f, r in zip(quat_only, full, recs):
+        assert q["quat"].shape == (len(r["t"]), 4) and q["quat"].dtype == np.dtype(dtype)
+        np.testing.assert_array_equal(q["quat"], f["quat"])
+
+
+@pytest.mark.parametrize("precision", ["f32", "f64"])
 def test_run_many_without_mag_and_fixed_steps_over_many_tiles(precision):
     """6D data into a filter that is 9D by default, with a fixed step: the engine writes the
     NaN field and the step into a channel's lane once and skips those stores in later tiles;
