@@ -297,7 +297,8 @@ impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
         let n = L::LANES;
         let mut block = [L::zero(); MAX_LANES];
         block[..4].copy_from_slice(&[quat.w, quat.x, quat.y, quat.z]);
-        if n < 4 || n > MAX_LANES || sinks.len() != n || !L::transpose_lanes(&mut block[..n]) {
+        if !(4..=MAX_LANES).contains(&n) || sinks.len() != n || !L::transpose_lanes(&mut block[..n])
+        {
             let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z];
             for (i, o) in sinks.iter_mut().enumerate() {
                 if (active >> i) & 1 == 1 {
