@@ -159,8 +159,8 @@ pub use fleet::{
 };
 pub use recordings::{
     ChannelOutput, Columns, Estimate, EstimateSink, FinalState, INTERLEAVE_STATE_BYTES, Precision,
-    flag, interleaves, run_final_states, run_into_sinks, run_recordings, run_recordings_with,
-    run_sources, run_sources_into, run_sources_with, visit_lanes,
+    flag, interleaves, push_quat_per_lane, run_final_states, run_into_sinks, run_recordings,
+    run_recordings_with, run_sources, run_sources_into, run_sources_with, visit_lanes,
 };
 #[cfg(feature = "throughput")]
 pub use throughput::{ModeResult, Order, ROUNDS, SweepPoint, ThroughputReport, sweep, throughput};

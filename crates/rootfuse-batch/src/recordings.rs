@@ -349,12 +349,7 @@ pub trait EstimateSink: Send {
     where
         Self: Sized,
     {
-        let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z].map(lane_values);
-        for (i, o) in sinks.iter_mut().enumerate() {
-            if (active >> i) & 1 == 1 {
-                o.push_quat(k, Quat::new(w[i], x[i], y[i], z[i]));
-            }
-        }
+        push_quat_per_lane(sinks, active, k, quat);
     }
     /// The channel's counters once its last sample has run.
     fn finish(&mut self, rejections: RejectionTotals);
@@ -472,6 +467,23 @@ fn run_typed<L: Lane, F: RegisteredFilter<L>, S: ChannelSource, K: EstimateSink>
                 o.finish(chunk.rejections(i));
             }
         });
+}
+
+/// [`EstimateSink::push_quat_lanes`]'s default, for a sink's own fallback: each active
+/// lane's orientation, in `f64`, to its sink's [`push_quat`](EstimateSink::push_quat).
+#[inline]
+pub fn push_quat_per_lane<K: EstimateSink, L: Lane>(
+    sinks: &mut [K],
+    active: u64,
+    k: usize,
+    quat: &Quat<L>,
+) {
+    let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z].map(lane_values);
+    for (i, o) in sinks.iter_mut().enumerate() {
+        if (active >> i) & 1 == 1 {
+            o.push_quat(k, Quat::new(w[i], x[i], y[i], z[i]));
+        }
+    }
 }
 
 /// One step's estimates of every lane of a chunk, read lane by lane ([`StepLanes::lane`]):

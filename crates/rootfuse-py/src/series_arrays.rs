@@ -6,7 +6,9 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rootfuse_attitude::Lane;
-use rootfuse_batch::{Columns, Estimate, EstimateSink, MAX_LANES, RejectionTotals};
+use rootfuse_batch::{
+    Columns, Estimate, EstimateSink, MAX_LANES, RejectionTotals, push_quat_per_lane,
+};
 
 /// The float types series are written in: the engine's f64 estimates converted on the way
 /// in (exactly, for `f32` lanes' values into `f32`).
@@ -299,16 +301,7 @@ impl<E: SeriesFloat> EstimateSink for ArraySink<'_, E> {
         block[..4].copy_from_slice(&[quat.w, quat.x, quat.y, quat.z]);
         if !(4..=MAX_LANES).contains(&n) || sinks.len() != n || !L::transpose_lanes(&mut block[..n])
         {
-            let [w, x, y, z] = [quat.w, quat.x, quat.y, quat.z];
-            for (i, o) in sinks.iter_mut().enumerate() {
-                if (active >> i) & 1 == 1 {
-                    let lane = |v: L| v.extract(i).into();
-                    o.push_quat(
-                        k,
-                        rootfuse_attitude::Quat::new(lane(w), lane(x), lane(y), lane(z)),
-                    );
-                }
-            }
+            push_quat_per_lane(sinks, active, k, quat);
             return;
         }
         for (i, (o, v)) in sinks.iter_mut().zip(&block[..n]).enumerate() {
