@@ -325,7 +325,8 @@ pub trait EstimateSink: Send {
     /// and the [`flag`] bits.
     fn push(&mut self, k: usize, estimate: &Estimate);
     /// The orientation after sample `k`, where [`Columns`] asked for nothing else: the
-    /// engine calls this instead of [`push`](Self::push) then. By default `push` with the
+    /// default [`push_quat_lanes`](Self::push_quat_lanes) calls this per lane instead of
+    /// [`push`](Self::push) then. By default `push` with the
     /// other columns `None`; a sink that stores the orientation directly overrides it and
     /// skips building the [`Estimate`] (a quaternion series is written at every sample of
     /// every channel, where a cheap filter's whole update is a few dozen instructions).
@@ -341,7 +342,7 @@ pub trait EstimateSink: Send {
     }
     /// The orientations after step `k` of a chunk's channels, `sinks[i]` the sink of lane
     /// `i`, for the lanes set in `active` (bit `i`), where [`Columns`] asked for nothing
-    /// else: the engine calls this once per step. By default each lane's value, in `f64`, to
+    /// else: the engine calls this once per step of each chunk. By default each lane's value, in `f64`, to
     /// its sink's [`push_quat`](Self::push_quat); a sink that stores quaternions directly can
     /// move a whole step's lanes at once (the NumPy sink transposes them in registers).
     #[inline]

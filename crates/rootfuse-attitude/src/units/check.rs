@@ -33,7 +33,8 @@ fn bin_edges() -> &'static [f64; BINS + 1] {
 fn bin_of(x: f64) -> usize {
     let x = x.abs();
     let edges = bin_edges();
-    // |x| ≥ 2^e, so log10|x| ≥ e·log10(2); one bin lower against the product's rounding.
+    // |x| ≥ 2^e, so log10|x| ≥ e·log10(2); one bin lower against the product's rounding
+    // (a subnormal's e = −1023 clamps to bin 0).
     let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
     let below = ((f64::from(e) * core::f64::consts::LOG10_2 - LOG_MIN) * DECADE_BINS).floor() - 1.0;
     let mut b = below.clamp(0.0, (BINS - 1) as f64) as usize;
