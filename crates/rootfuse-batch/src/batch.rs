@@ -107,9 +107,19 @@ pub trait ChannelSource: Sync {
     where
         Self: Sized,
     {
-        for (lane, source) in lanes.iter().enumerate() {
-            source.read_into(start, lane, tile);
-        }
+        read_each_lane(lanes, start, tile);
+    }
+}
+
+/// [`ChannelSource::read_lanes`]'s default, for a source's own fallback: each channel's
+/// samples written into its lane by [`read_into`](ChannelSource::read_into).
+pub(crate) fn read_each_lane<S: ChannelSource, L: Lane>(
+    lanes: &[&S],
+    start: usize,
+    tile: &mut [(ImuSample<L>, L)],
+) {
+    for (lane, source) in lanes.iter().enumerate() {
+        source.read_into(start, lane, tile);
     }
 }
 
@@ -283,9 +293,7 @@ impl<S: ChannelSource> ChannelSource for &S {
     }
     fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
         let (Some(&&first), true) = (lanes.first(), lanes.len() <= MAX_LANES) else {
-            for (lane, source) in lanes.iter().enumerate() {
-                source.read_into(start, lane, tile);
-            }
+            read_each_lane(lanes, start, tile);
             return;
         };
         let inner: [&S; MAX_LANES] = core::array::from_fn(|i| lanes.get(i).map_or(first, |s| **s));

@@ -1,6 +1,8 @@
 //! [`FleetRunner`]: a fleet of devices streamed through the batch engine in blocks of rows.
 
-use crate::batch::{Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch};
+use crate::batch::{
+    Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch, read_each_lane,
+};
 use crate::recordings::{Columns, Estimate, Precision};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};
@@ -449,9 +451,7 @@ impl ChannelSource for DeviceRows<'_> {
     fn read_lanes<L: Lane>(lanes: &[&Self], start: usize, tile: &mut [(ImuSample<L>, L)]) {
         let n = lanes.len();
         if n != L::LANES || n > MAX_LANES || lanes.iter().any(|s| s.len() < start + tile.len()) {
-            for (lane, source) in lanes.iter().enumerate() {
-                source.read_into(start, lane, tile);
-            }
+            read_each_lane(lanes, start, tile);
             return;
         }
         let cast = |x: f64| <L::Scalar as Lane>::from_f64(x);

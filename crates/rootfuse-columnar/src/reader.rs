@@ -113,8 +113,8 @@ impl Devices {
             DeviceKey::Int(v) if (0..SMALL_KEYS).contains(&v) => Some(v as usize),
             _ => None,
         };
-        if let Some(&d) = small.and_then(|i| self.small.get(i))
-            && d != u32::MAX
+        if let DeviceKey::Int(v) = key
+            && let Some(d) = self.small_id(v)
         {
             return d;
         }

@@ -239,6 +239,8 @@ impl EstimateWriter {
             arrays.push(arrow::compute::filter(&col, &mask).map_err(|e| write_error(&e))?);
         }
         for &source in &sources {
+            // `t` and the quaternion, every file's columns, are read without `value`'s match
+            // at every row (a Mahony fleet run took 3–6 % longer through it).
             let array: ArrayRef = match source {
                 Source::Flags => Arc::new(UInt8Array::from_iter_values(
                     kept.iter().map(|&r| est.flags[r]),

@@ -603,7 +603,12 @@ mod tests {
     /// A 9D `f64` flagship after `samples` samples at 100 Hz of a slow turn with a slight
     /// tilt and a dipping field.
     fn turning_filter(samples: u32) -> SqrtEskf<f64> {
-        let mut f = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+        turning_filter_with(&SqrtEskfParams::default(), samples)
+    }
+
+    /// [`turning_filter`] with parameters `p` (in 6D the field readings are ignored).
+    fn turning_filter_with(p: &SqrtEskfParams, samples: u32) -> SqrtEskf<f64> {
+        let mut f = SqrtEskf::<f64>::new(p);
         for k in 0..samples {
             let t = f64::from(k) * 0.01;
             let sample = ImuSample::new(
@@ -641,21 +646,18 @@ mod tests {
     #[test]
     fn the_reported_inclination_block_is_the_covariances() {
         for nine_d in [true, false] {
-            let mut f = turning_filter(402);
-            if !nine_d {
-                f = SqrtEskf::<f64>::new(&SqrtEskfParams {
-                    dof: crate::Dof::Six,
-                    ..SqrtEskfParams::default()
-                });
-                for k in 0..402 {
-                    let t = f64::from(k) * 0.01;
-                    let gyr = Vec3::new(0.8 * t.sin(), 0.5, -0.3 * t.cos());
-                    f.update(
-                        &ImuSample::six_d(gyr, Vec3::new(0.3 * t.cos(), -0.2, 9.8)),
-                        0.01,
-                    );
-                }
-            }
+            let dof = if nine_d {
+                crate::Dof::Nine
+            } else {
+                crate::Dof::Six
+            };
+            let f = turning_filter_with(
+                &SqrtEskfParams {
+                    dof,
+                    ..Default::default()
+                },
+                402,
+            );
             assert!(f.state.tilt_noise_var > 0.0, "something is pending");
             let (a, p) = (f.attitude_covariance().unwrap(), f.covariance());
             let scale = (p.m[0][0] * p.m[1][1]).sqrt();
