@@ -131,8 +131,9 @@ macro_rules! simd_lane {
             }
             #[inline]
             fn select(mask: Self, a: Self, b: Self) -> Self {
-                mask.select(a, b)
+                <$t as Blend>::blend(mask, a, b)
             }
+
             #[inline]
             fn sin_cos(self) -> (Self, Self) {
                 $t::sin_cos(self)
@@ -155,6 +156,116 @@ macro_rules! simd_lane {
             }
         }
     };
+}
+
+/// The lane select. Where the compiler sees a plain select whose other side is a load of
+/// the place the result is stored to (`x = select(m, y, x)` on a filter's state), LLVM 21 and
+/// later fold the three into a masked store (`vmaskmovps`), which AMD Zen 1–3 execute as a
+/// microcoded sequence that later loads of that place cannot forward from
+/// (llvm/llvm-project#213195). The AVX blends below are one instruction the compiler cannot
+/// look into, so the state is loaded, blended in registers and stored whole: the flagship's
+/// `f32x8` lanes 24 % faster on a Zen 2 (docs/flagship_cost.md).
+trait Blend: Sized {
+    fn blend(mask: Self, a: Self, b: Self) -> Self;
+}
+
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+macro_rules! plain_blend {
+    ($t:ident) => {
+        impl Blend for $t {
+            #[inline(always)]
+            fn blend(mask: Self, a: Self, b: Self) -> Self {
+                mask.select(a, b)
+            }
+        }
+    };
+}
+
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+mod plain {
+    use super::Blend;
+    use wide::{f32x4, f32x8, f64x2, f64x4};
+    plain_blend!(f32x4);
+    plain_blend!(f64x2);
+    plain_blend!(f32x8);
+    plain_blend!(f64x4);
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+macro_rules! avx_blend {
+    ($t:ident, $m:ident, $reg:ident, $insn:literal, $f:ident) => {
+        /// `mask ? a : b` by the sign bit of each element of `mask`, as one instruction.
+        /// Its own function so that the AVX registers are allowed wherever it is
+        /// instantiated (a doctest is compiled without the crate's target features).
+        #[target_feature(enable = "avx")]
+        #[inline]
+        fn $f(mask: $m, a: $m, b: $m) -> $m {
+            let out: $m;
+            // SAFETY: the instruction reads three registers and writes one, nothing else.
+            unsafe {
+                core::arch::asm!(
+                    $insn,
+                    o = lateout($reg) out,
+                    b = in($reg) b,
+                    a = in($reg) a,
+                    m = in($reg) mask,
+                    options(pure, nomem, nostack, preserves_flags),
+                );
+            }
+            out
+        }
+
+        impl Blend for $t {
+            #[inline(always)]
+            fn blend(mask: Self, a: Self, b: Self) -> Self {
+                // SAFETY: this module is compiled only where AVX is enabled for the crate,
+                // so the machine running it has AVX; with AVX `wide` keeps the vector as
+                // the `__m128`/`__m256` it is (transmute checks the sizes at compile time).
+                unsafe {
+                    core::mem::transmute::<$m, $t>($f(
+                        core::mem::transmute::<$t, $m>(mask),
+                        core::mem::transmute::<$t, $m>(a),
+                        core::mem::transmute::<$t, $m>(b),
+                    ))
+                }
+            }
+        }
+    };
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+mod avx {
+    use super::Blend;
+    use core::arch::x86_64::{__m128, __m128d, __m256, __m256d};
+    use wide::{f32x4, f32x8, f64x2, f64x4};
+    avx_blend!(
+        f32x4,
+        __m128,
+        xmm_reg,
+        "vblendvps {o}, {b}, {a}, {m}",
+        blendv_ps128
+    );
+    avx_blend!(
+        f64x2,
+        __m128d,
+        xmm_reg,
+        "vblendvpd {o}, {b}, {a}, {m}",
+        blendv_pd128
+    );
+    avx_blend!(
+        f32x8,
+        __m256,
+        ymm_reg,
+        "vblendvps {o}, {b}, {a}, {m}",
+        blendv_ps256
+    );
+    avx_blend!(
+        f64x4,
+        __m256d,
+        ymm_reg,
+        "vblendvpd {o}, {b}, {a}, {m}",
+        blendv_pd256
+    );
 }
 
 simd_lane!(f32x4, f32, 4, u32);

@@ -343,8 +343,10 @@ pub(crate) fn bias_without_covariance<T: Lane>(
 
 /// Shared initialisation: where a lane is not yet initialised and this sample has a usable
 /// accelerometer, the orientation is taken from the sample (gravity, and the magnetometer
-/// when `nine_d` and usable); elsewhere `q` is returned unchanged.
-#[inline]
+/// when `nine_d` and usable); elsewhere `q` is returned unchanged. Always inlined: left to
+/// itself the compiler called it out of line from some updates, which cost scalar `f32`
+/// Mahony 53 → 47 ns per update and the complementary filter 66 → 62 (`rootfuse throughput`).
+#[inline(always)]
 pub(crate) fn initialise<T: Lane>(
     q: Quat<T>,
     initialized: &mut T::Mask,
