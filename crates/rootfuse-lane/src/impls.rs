@@ -159,12 +159,16 @@ macro_rules! simd_lane {
 }
 
 /// The lane select. Where the compiler sees a plain select whose other side is a load of
-/// the place the result is stored to (`x = select(m, y, x)` on a filter's state), LLVM 21 and
-/// later fold the three into a masked store (`vmaskmovps`), which AMD Zen 1–3 execute as a
-/// microcoded sequence that later loads of that place cannot forward from
-/// (llvm/llvm-project#213195). The AVX blends below are one instruction the compiler cannot
-/// look into, so the state is loaded, blended in registers and stored whole: the flagship's
-/// `f32x8` lanes 24 % faster on a Zen 2 (docs/flagship_cost.md).
+/// the place the result is stored to (`x = select(m, y, x)` on a filter's state), LLVM 22
+/// folds the three into a masked store (`vmaskmovps`, llvm/llvm-project#145176), which AMD
+/// Zen 1–3 execute as a slow microcoded sequence (llvm/llvm-project#213195). The AVX blends
+/// below are one instruction the compiler cannot look into, so the state is loaded, blended
+/// in registers and stored whole: the flagship's `f32x8` lanes take 24 % less time per update
+/// on a Zen 2 (docs/flagship_cost.md). They cost Mahony's lanes 13 % there, and wherever the
+/// fold is harmless (Intel, later Zen): once the toolchain's LLVM has the fix
+/// (llvm/llvm-project#214187, which stops the fold on Zen 1–3 and `x86-64-v3`), measure
+/// again and drop them. `min`/`max` keep the compiler's select, which becomes one
+/// `vminps`/`vmaxps` and does not store back its first operand.
 trait Blend: Sized {
     fn blend(mask: Self, a: Self, b: Self) -> Self;
 }
