@@ -269,7 +269,7 @@ impl<T: Lane> Screened<T> {
 
     /// The screening; `with_mag` false (the same for every lane) leaves the magnetometer
     /// unusable without looking at it, which is what 6D operation discards anyway.
-    #[inline]
+    #[inline(always)]
     fn screen(
         sample: &ImuSample<T>,
         dt: T,
@@ -336,7 +336,7 @@ impl<T: Lane> Screened<T> {
 
     /// Screens `sample` for a filter running in 9D (`nine_d`: an unusable magnetometer is
     /// counted) or 6D (the magnetometer is ignored, uncounted: it is not even normalised).
-    #[inline]
+    #[inline(always)]
     pub fn for_dof(
         sample: &ImuSample<T>,
         dt: T,
