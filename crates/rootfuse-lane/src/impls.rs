@@ -164,8 +164,9 @@ macro_rules! simd_lane {
 /// Zen 1–3 execute as a slow microcoded sequence (llvm/llvm-project#213195). The AVX blends
 /// below are one instruction the compiler cannot look into, so the state is loaded, blended
 /// in registers and stored whole: the flagship's `f32x8` lanes take 24 % less time per update
-/// on a Zen 2 (docs/flagship_cost.md). They cost Mahony's lanes 13 % there, and wherever the
-/// fold is harmless (Intel, later Zen): once the toolchain's LLVM has the fix
+/// on a Zen 2 (docs/flagship_cost.md). Alone they cost Mahony's lanes 13 % there (the
+/// screening, inlined since, recovered it), and where the fold is harmless (Intel, later Zen)
+/// they only constrain the compiler: once the toolchain's LLVM has the fix
 /// (llvm/llvm-project#214187, which stops the fold on Zen 1–3 and `x86-64-v3`), measure
 /// again and drop them. `min`/`max` keep the compiler's select, which becomes one
 /// `vminps`/`vmaxps` and does not store back its first operand.

@@ -268,7 +268,9 @@ impl<T: Lane> Screened<T> {
     }
 
     /// The screening; `with_mag` false (the same for every lane) leaves the magnetometer
-    /// unusable without looking at it, which is what 6D operation discards anyway.
+    /// unusable without looking at it, which is what 6D operation discards anyway. Always
+    /// inlined: the compiler left it out of line in the lanes, the screened sample passing
+    /// through memory (Mahony's `f32x8` lanes 5.1 ns per update against 4.06 inlined).
     #[inline(always)]
     fn screen(
         sample: &ImuSample<T>,
