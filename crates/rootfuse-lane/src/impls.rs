@@ -131,9 +131,15 @@ macro_rules! simd_lane {
             }
             #[inline]
             fn select(mask: Self, a: Self, b: Self) -> Self {
-                <$t as Blend>::blend(mask, a, b)
+                #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+                {
+                    <$t as avx::Blend>::blend(mask, a, b)
+                }
+                #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+                {
+                    mask.select(a, b)
+                }
             }
-
             #[inline]
             fn sin_cos(self) -> (Self, Self) {
                 $t::sin_cos(self)
@@ -158,47 +164,9 @@ macro_rules! simd_lane {
     };
 }
 
-/// The lane select. Where the compiler sees a plain select whose other side is a load of
-/// the place the result is stored to (`x = select(m, y, x)` on a filter's state), LLVM 22
-/// folds the three into a masked store (`vmaskmovps`, llvm/llvm-project#145176), which AMD
-/// Zen 1–3 execute as a slow microcoded sequence (llvm/llvm-project#213195). The AVX blends
-/// below are one instruction the compiler cannot look into, so the state is loaded, blended
-/// in registers and stored whole: the flagship's `f32x8` lanes take 24 % less time per update
-/// on a Zen 2 (docs/flagship_cost.md). Alone they cost Mahony's lanes 13 % there (the
-/// screening, inlined since, recovered it), and where the fold is harmless (Intel, later Zen)
-/// they only constrain the compiler: once the toolchain's LLVM has the fix
-/// (llvm/llvm-project#214187, which stops the fold on Zen 1–3 and `x86-64-v3`), measure
-/// again and drop them. `min`/`max` keep the compiler's select, which becomes one
-/// `vminps`/`vmaxps` and does not store back its first operand.
-trait Blend: Sized {
-    fn blend(mask: Self, a: Self, b: Self) -> Self;
-}
-
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-macro_rules! plain_blend {
-    ($t:ident) => {
-        impl Blend for $t {
-            #[inline(always)]
-            fn blend(mask: Self, a: Self, b: Self) -> Self {
-                mask.select(a, b)
-            }
-        }
-    };
-}
-
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-mod plain {
-    use super::Blend;
-    use wide::{f32x4, f32x8, f64x2, f64x4};
-    plain_blend!(f32x4);
-    plain_blend!(f64x2);
-    plain_blend!(f32x8);
-    plain_blend!(f64x4);
-}
-
 #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
 macro_rules! avx_blend {
-    ($t:ident, $m:ident, $reg:ident, $insn:literal, $f:ident) => {
+    ($t:ident, $m:ident, $reg:ident, $ps:literal, $f:ident) => {
         /// `mask ? a : b` by the sign bit of each element of `mask`, as one instruction.
         /// Its own function so that the AVX registers are allowed wherever it is
         /// instantiated (a doctest is compiled without the crate's target features).
@@ -209,7 +177,7 @@ macro_rules! avx_blend {
             // SAFETY: the instruction reads three registers and writes one, nothing else.
             unsafe {
                 core::arch::asm!(
-                    $insn,
+                    concat!("vblendv", $ps, " {o}, {b}, {a}, {m}"),
                     o = lateout($reg) out,
                     b = in($reg) b,
                     a = in($reg) a,
@@ -238,39 +206,31 @@ macro_rules! avx_blend {
     };
 }
 
+/// The lane select. Where the compiler sees a plain select whose other side is a load of
+/// the place the result is stored to (`x = select(m, y, x)` on a filter's state), LLVM 22
+/// folds the three into a masked store (`vmaskmovps`, llvm/llvm-project#145176), which AMD
+/// Zen 1–3 execute as a slow microcoded sequence (llvm/llvm-project#213195). The AVX blends
+/// below are one instruction the compiler cannot look into, so the state is loaded, blended
+/// in registers and stored whole: the flagship's `f32x8` lanes take 24 % less time per update
+/// on a Zen 2 (docs/flagship_cost.md). Alone they cost Mahony's lanes 13 % there (the
+/// screening, inlined since, recovered it), and where the fold is harmless (Intel, later Zen)
+/// they only constrain the compiler: once the toolchain's LLVM has the fix
+/// (llvm/llvm-project#214187, which stops the fold on Zen 1–3 and `x86-64-v3`), measure
+/// again and drop them. `min`/`max` keep the compiler's select, which becomes one
+/// `vminps`/`vmaxps` and does not store back its first operand.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
 mod avx {
-    use super::Blend;
     use core::arch::x86_64::{__m128, __m128d, __m256, __m256d};
     use wide::{f32x4, f32x8, f64x2, f64x4};
-    avx_blend!(
-        f32x4,
-        __m128,
-        xmm_reg,
-        "vblendvps {o}, {b}, {a}, {m}",
-        blendv_ps128
-    );
-    avx_blend!(
-        f64x2,
-        __m128d,
-        xmm_reg,
-        "vblendvpd {o}, {b}, {a}, {m}",
-        blendv_pd128
-    );
-    avx_blend!(
-        f32x8,
-        __m256,
-        ymm_reg,
-        "vblendvps {o}, {b}, {a}, {m}",
-        blendv_ps256
-    );
-    avx_blend!(
-        f64x4,
-        __m256d,
-        ymm_reg,
-        "vblendvpd {o}, {b}, {a}, {m}",
-        blendv_pd256
-    );
+
+    pub(super) trait Blend: Sized {
+        fn blend(mask: Self, a: Self, b: Self) -> Self;
+    }
+
+    avx_blend!(f32x4, __m128, xmm_reg, "ps", blendv_ps128);
+    avx_blend!(f64x2, __m128d, xmm_reg, "pd", blendv_pd128);
+    avx_blend!(f32x8, __m256, ymm_reg, "ps", blendv_ps256);
+    avx_blend!(f64x4, __m256d, ymm_reg, "pd", blendv_pd256);
 }
 
 simd_lane!(f32x4, f32, 4, u32);
