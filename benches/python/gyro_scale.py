@@ -1,0 +1,137 @@
+"""What the gyroscope's scale factor costs on the shared BROAD trials: the 6D heading drift of
+each trial against its net rotation about earth-up, and the mean errors of the flagship and
+VQF online with the gyroscope's readings multiplied by a few factors.
+
+    .venv/bin/python benches/python/gyro_scale.py [--broad DIR] [--docs docs/accuracy.md]
+
+A gyroscope whose scale factor is off by a fraction `s` turns the estimate `s` times every
+angle it measures. Nothing corrects a 6D heading, so its drift over a trial is `s` times the
+net rotation about earth-up (the sensor turning the same way again and again adds up; back and
+forth cancels), where a bias would drift it with time instead. The first table gives, per trial,
+the net rotation about earth-up of the optical truth (the sum of the vertical components of its
+rotation between samples), the drift of the flagship's 6D heading error over the trial (the
+slope of a line fitted to the signed error, times the duration) and their ratio. The second
+scores both filters with the gyroscope's readings multiplied per axis: a factor that helps
+both alike is the recording's sensor, not a filter. With `--docs` the tables replace the text
+between `<!-- gyro_scale_drift:begin -->` / `<!-- gyro_scale_drift:end -->` and
+`<!-- gyro_scale:begin -->` / `<!-- gyro_scale:end -->` in that file.
+"""
+
+import argparse
+import pathlib
+import platform
+import sys
+
+import numpy as np
+
+import docs_page
+import rootfuse as rf
+from accuracy_peers import VQF_VERSION
+
+try:
+    import vqf
+except ImportError:  # a bench, not a test: say what is missing and stop
+    sys.exit("vqf is not installed: .venv/bin/pip install vqf")
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+# Gyroscope factors per axis (x, y, z) scored in the second table.
+FACTORS = ((1.0, 1.0, 1.0), (1.002, 1.002, 1.002), (1.0, 1.0, 1.002), (1.0, 1.002, 1.004),
+           (1.004, 1.004, 1.004))
+
+
+def qmul(a, b):
+    """Hamilton products of quaternion arrays `[w, x, y, z]` (N, 4)."""
+    w1, x1, y1, z1 = a.T
+    w2, x2, y2, z2 = b.T
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=1)
+
+
+def conj(q):
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def net_vertical_rotation(truth):
+    """Sum over the samples of the truth's rotation about earth-up between neighbours, degrees
+    (steps with an unknown truth left out)."""
+    step = qmul(truth[1:], conj(truth[:-1]))  # earth-frame rotation from one sample to the next
+    step = step * np.sign(step[:, :1])
+    angle_z = 2.0 * np.arctan2(step[:, 3], step[:, 0])  # about earth-up, for small steps
+    return float(np.degrees(np.nansum(angle_z)))
+
+
+def heading_drift(quat, rec):
+    """Drift of the signed 6D heading error over the trial, degrees: a line's slope fitted to
+    the error about earth-up (truth against estimate) on the samples the metric counts, times
+    the counted time span."""
+    used = rf.error_series(quat, rec, dof=6)["used"]
+    err = qmul(rec["truth"][used], conj(quat[used]))
+    yaw = np.unwrap(2.0 * np.arctan2(err[:, 3], err[:, 0]))
+    t = rec["t"][used]
+    slope = np.polyfit(t - t[0], np.degrees(yaw), 1)[0]
+    return float(slope * (t[-1] - t[0]))
+
+
+def errors(rec, factors):
+    """Mean-able errors (9D total, 6D total, 6D inclination) of the flagship and VQF online with
+    the gyroscope multiplied by `factors`."""
+    gyr = np.ascontiguousarray(rec["gyr"] * np.asarray(factors))
+    acc, mag, t = np.ascontiguousarray(rec["acc"]), np.ascontiguousarray(rec["mag"]), rec["t"]
+    dt = float(np.median(np.diff(t)))
+    out = {}
+    q9 = rf.Filter("flagship", dof=9).update_batch(gyr, acc, mag, t=t)["quat"]
+    q6 = rf.Filter("flagship", dof=6).update_batch(gyr, acc, None, t=t)["quat"]
+    v9 = vqf.VQF(dt).updateBatch(gyr, acc, mag)["quat9D"]
+    v6 = vqf.VQF(dt).updateBatch(gyr, acc)["quat6D"]
+    for name, a, b in (("flagship", q9, q6), ("VQF online", v9, v6)):
+        e6 = rf.rmse(b, rec, dof=6)
+        out[name] = (rf.rmse(a, rec, dof=9)["total"], e6["total"], e6["inclination"])
+    return out
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
+    p.add_argument("--docs", help="write the tables into this file between the markers")
+    a = p.parse_args(argv)
+    files = sorted(f for f in pathlib.Path(a.broad).glob("*.csv") if f.name[:2].isdigit())
+    if not files:
+        sys.exit(f"no BROAD trials in {a.broad}")
+    recs = [rf.read_csv(f) for f in files]
+    commit = docs_page.commit()
+    source = f"{platform.node()}, commit {commit}, `benches/python/gyro_scale.py`, vqf {VQF_VERSION}."
+
+    drift = [f"6D heading drift of the flagship over each trial against the truth's net rotation "
+             f"about earth-up, degrees. {source}", "",
+             "| trial | net rotation about up | heading drift | drift / rotation |", "|---|---|---|---|"]
+    for f, rec in zip(files, recs):
+        q6 = rf.Filter("flagship", dof=6).update_batch(rec["gyr"], rec["acc"], None, t=rec["t"])["quat"]
+        turn, d = net_vertical_rotation(rec["truth"]), heading_drift(q6, rec)
+        ratio = f"{100.0 * d / turn:+.2f} %" if abs(turn) >= 360.0 else "(under one turn)"
+        drift.append(f"| {f.name[:2]} | {turn:+.0f} | {d:+.1f} | {ratio} |")
+        print(f"{f.name[:2]} drift done", file=sys.stderr)
+    drift = "\n".join(drift)
+
+    names = ("flagship", "VQF online")
+    table = [f"Mean RMSE over the 14 trials, degrees, 9D total / 6D total / 6D inclination, online, "
+             f"the gyroscope's readings multiplied per axis. {source}", "",
+             "| gyroscope × (x, y, z) | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for factors in FACTORS:
+        sums = {n: [] for n in names}
+        for rec in recs:
+            for n, e in errors(rec, factors).items():
+                sums[n].append(e)
+        cells = " | ".join("{:.3f} / {:.3f} / {:.3f}".format(*np.mean(sums[n], axis=0)) for n in names)
+        table.append(f"| {', '.join(f'{x:g}' for x in factors)} | {cells} |")
+        print(f"{factors} done", file=sys.stderr)
+    table = "\n".join(table)
+    print(drift)
+    print(table)
+    if a.docs:
+        docs_page.write_between_markers(a.docs, "gyro_scale_drift", drift)
+        docs_page.write_between_markers(a.docs, "gyro_scale", table)
+
+
+if __name__ == "__main__":
+    main()
