@@ -9,24 +9,24 @@ use rootfuse_eval::metrics::{Alignment, evaluate};
 use rootfuse_io::read_dir;
 
 /// Per trial (file name order): total RMSE in degrees for 9D and 6D in f64, as the flagship
-/// with two accelerometer windows gives them (`rootfuse run --precision f64` +
+/// with two accelerometer windows and the gyroscope's scale estimated gives them (`rootfuse run --precision f64` +
 /// `rootfuse eval --json`). The test prints its own numbers in this form when it fails.
 #[rustfmt::skip]
 const PINNED: &[[f64; 2]] = &[
-    [1.277, 0.611], // 02_undisturbed_slow_rotation_B
-    [1.281, 3.931], // 04_undisturbed_slow_rotation_with_breaks_A
-    [1.650, 1.532], // 07_undisturbed_fast_rotation_B
-    [3.433, 7.876], // 08_undisturbed_fast_rotation_with_breaks_A
+    [1.057, 0.538], // 02_undisturbed_slow_rotation_B
+    [0.739, 2.368], // 04_undisturbed_slow_rotation_with_breaks_A
+    [1.649, 1.533], // 07_undisturbed_fast_rotation_B
+    [3.119, 8.875], // 08_undisturbed_fast_rotation_with_breaks_A
     [1.367, 1.052], // 10_undisturbed_slow_translation_A
-    [1.435, 1.382], // 12_undisturbed_slow_translation_C
+    [1.435, 1.383], // 12_undisturbed_slow_translation_C
     [0.805, 0.667], // 16_undisturbed_fast_translation_B
     [0.777, 0.822], // 18_undisturbed_fast_translation_with_breaks_B
-    [1.281, 0.848], // 24_disturbed_tapping_A
-    [6.926, 1.709], // 27_disturbed_phone_vibration_B
-    [1.918, 4.663], // 29_disturbed_stationary_magnet_B
-    [1.845, 3.078], // 31_disturbed_stationary_magnet_D
-    [2.049, 2.355], // 33_disturbed_attached_magnet_2cm
-    [2.658, 2.980], // 35_disturbed_attached_magnet_4cm
+    [1.284, 0.841], // 24_disturbed_tapping_A
+    [6.927, 1.709], // 27_disturbed_phone_vibration_B
+    [1.920, 4.653], // 29_disturbed_stationary_magnet_B
+    [1.865, 3.034], // 31_disturbed_stationary_magnet_D
+    [2.032, 2.283], // 33_disturbed_attached_magnet_2cm
+    [2.656, 2.958], // 35_disturbed_attached_magnet_4cm
 ];
 
 /// The flagship over `rec` with `p` (in f32 lanes or f64): total and inclination RMSE,
@@ -492,11 +492,15 @@ fn differences_at_eight_and_one(set: fn(&mut SqrtEskfParams, f64)) -> Vec<String
                 scores(rec, &p, false)
             };
             let (every, each) = (score(8.0), score(1.0));
-            for (what, a, b) in [
-                ("total", every[0], each[0]),
-                ("inclination", every[1], each[1]),
+            // A 6D heading is the scale estimate's times the net rotation about up, which on
+            // the trials that turn one way many times (04, 08: up to 19 turns) makes a
+            // difference of the corrections a difference of the heading.
+            let total_within = if dof == 6 { 0.01 } else { 0.002 };
+            for (what, a, b, within) in [
+                ("total", every[0], each[0], total_within),
+                ("inclination", every[1], each[1], 0.002),
             ] {
-                if (a - b).abs() > 0.002 {
+                if (a - b).abs() > within {
                     failures.push(format!(
                         "{} {dof}D {what}: {a:.4} every 8th sample, {b:.4} every sample",
                         rec.name
@@ -510,7 +514,9 @@ fn differences_at_eight_and_one(set: fn(&mut SqrtEskfParams, f64)) -> Vec<String
 
 /// The inclination corrected every `acc_update_every` samples (the default, 8) with the
 /// information of all of them is the filter corrected every sample, to within 0.002° on every
-/// BROAD trial, 9D and 6D, total and inclination (measured: 0.0001°; 0.0008° offline). A
+/// BROAD trial, 9D and 6D, total and inclination, but 0.01° for the 6D total (measured:
+/// 0.0001°, 0.0055° for 08's 6D total since the gyroscope's scale is estimated from the
+/// corrections; 0.0008° offline). A
 /// correction that did not stand for the skipped samples (the one-sample variance) would
 /// correct eight times more slowly and move every trial by far more.
 #[test]
@@ -583,9 +589,10 @@ fn testing_the_field_every_fourth_reading_keeps_the_accuracy() {
 }
 
 /// `acc_noise_rotation_share` 0.1 (off by default, docs/accuracy.md "Motion-dependent
-/// accelerometer noise"): on the 14 BROAD trials the 9D online mean is better than the
-/// defaults' in total and inclination (measured 2.013 / 0.717 against 2.050 / 0.722), and 1 is
-/// the defaults bit for bit.
+/// accelerometer noise"): on the 14 BROAD trials the 9D online mean total is better than the
+/// defaults' and the inclination not (measured 1.950 / 0.684 against 1.974 / 0.680; before the
+/// gyroscope's scale was estimated it gained both, 2.013 / 0.717 against 2.050 / 0.722), and 1
+/// is the defaults bit for bit.
 #[test]
 #[cfg_attr(
     not(broad_data),
@@ -617,8 +624,10 @@ fn motion_dependent_accelerometer_noise_gains_on_broad() {
         }
     }
     eprintln!("share 0.1: {on:.4?}, defaults: {off:.4?}");
+    // With the gyroscope's scale estimated the 9D total still gains and the inclination no
+    // longer does (measured 1.9501 / 0.6835 against 1.9736 / 0.6801).
     assert!(
-        on[0] <= off[0] - 0.02 && on[1] <= off[1] - 0.003,
+        on[0] <= off[0] - 0.015 && on[1] >= off[1],
         "share 0.1 {on:.4?} against the defaults' {off:.4?}"
     );
 }

@@ -101,7 +101,8 @@ def test_broad_covariance_coverage(broad_dir):
 
 def test_broad_constant_tilt_of_the_long_window(broad_dir):
     # docs/accuracy.md, "Where the online inclination still loses": the sensor's own constant
-    # tilt is shared by every estimator (02), and on 16 and 31 the flagship's second window
+    # tilt is shared by every estimator (02: 0.21-0.23°, the flagship's 0.01-0.02° below VQF's
+    # with the gyroscope's scale estimated), and on 16 and 31 the flagship's second window
     # adds one (measured 0.34 / 0.35° against 0.24 / 0.23° with one window). Pinned both
     # ways: a fix of it fails here until the page says so.
     import inclination_parts as parts_of
@@ -116,7 +117,7 @@ def test_broad_constant_tilt_of_the_long_window(broad_dir):
         for constant, varying, rms in found[trial].values():
             assert abs(constant ** 2 + varying ** 2 - rms ** 2) < 1e-9
     shared = [c[0] for c in found["02"].values()]
-    assert max(shared) - min(shared) < 0.01, found["02"]
+    assert max(shared) - min(shared) < 0.025, found["02"]
     for trial in ("16", "31"):
         added = found[trial]["flagship"][0] - found[trial]["one window"][0]
         assert 0.07 <= added <= 0.15, (trial, found[trial])
@@ -155,7 +156,8 @@ def test_broad_gyroscope_scale_factor(broad_dir):
     # on 04, 08, 29, 31 and of the other sign on 33, 35), and the gyroscope multiplied by
     # 1.002 takes the flagship's and VQF's 6D total (2.393 -> 1.899, 2.406 -> 1.894) and
     # inclination (0.722 -> 0.650, 0.725 -> 0.628) down alike, their 9D up (2.051 -> 2.203,
-    # 2.212 -> 2.306): the recording's sensor, not a filter.
+    # 2.212 -> 2.306): the recording's sensor, not a filter. The flagship without its own
+    # estimate of the scale (gyro_scale.FLAGSHIP), as the page measures it.
     import gyro_scale
 
     files = sorted(p for p in pathlib.Path(broad_dir).glob("*.csv") if p.name[:2].isdigit())
@@ -164,7 +166,9 @@ def test_broad_gyroscope_scale_factor(broad_dir):
     for p in files:
         rec = rf.read_csv(p)
         if p.name[:2] in ("04", "08", "29", "31", "33", "35"):
-            q6 = rf.Filter("flagship", dof=6).update_batch(rec["gyr"], rec["acc"], None, t=rec["t"])["quat"]
+            q6 = rf.Filter("flagship", dof=6, **gyro_scale.FLAGSHIP).update_batch(
+                rec["gyr"], rec["acc"], None, t=rec["t"]
+            )["quat"]
             ratio[p.name[:2]] = gyro_scale.heading_drift(q6, rec) / gyro_scale.net_vertical_rotation(rec["truth"])
         for factor in (1.0, 1.002):
             for name, e in gyro_scale.errors(rec, (factor,) * 3).items():

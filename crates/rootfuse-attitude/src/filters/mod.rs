@@ -26,13 +26,13 @@ mod upper_factor;
 macro_rules! lane_state {
     (
         $(#[$meta:meta])*
-        struct $name:ident<T: Lane> {
+        $vis:vis struct $name:ident<T: Lane> {
             $( $(#[$fmeta:meta])* $field:ident: $ty:ty, )*
         }
     ) => {
         $(#[$meta])*
         #[derive(Clone, Copy, Debug)]
-        struct $name<T: Lane> {
+        $vis struct $name<T: Lane> {
             $( $(#[$fmeta])* $field: $ty, )*
         }
         impl<T: Lane> rootfuse_lane::Select<T::Mask> for $name<T> {

@@ -8,7 +8,8 @@ impl SqrtEskfParams {
     /// `smoothing_short_tau_scale` (with one window, `tau_acc_long = 0`, by
     /// `smoothing_tau_scale`), no heading model error (`heading_model_error_scale` 0) and no
     /// sustained-acceleration term (`acc_excess_scale` 0), the field tested at every reading
-    /// (`mag_update_every` 1), everything else as given.
+    /// (`mag_update_every` 1), no online estimate of the gyroscope's scale
+    /// (`gyr_scale_window` 0), everything else as given.
     ///
     /// The two model errors are left out because the passes' reported covariances are the
     /// smoother's weights: an error term both passes share flattens the weights toward equal
@@ -18,7 +19,10 @@ impl SqrtEskfParams {
     /// `docs/accuracy.md`). For the same reason each pass corrects its heading at every
     /// reading: a correction every `mag_update_every` readings makes the heading variance a
     /// saw-tooth that the weights follow (then: BROAD 9D offline 1.641° at 1, 1.653° at 4;
-    /// `docs/flagship_cost.md`).
+    /// `docs/flagship_cost.md`). The scale estimate is left out because the two passes make
+    /// it from opposite ends of the recording and disagree while they learn it, which the
+    /// fused heading shows (BROAD 9D offline 1.562° without it, 1.618° with it;
+    /// `docs/accuracy.md`).
     ///
     /// ```
     /// use rootfuse_attitude::SqrtEskfParams;
@@ -30,6 +34,7 @@ impl SqrtEskfParams {
     /// assert_eq!(p.for_smoothing().heading_model_error_scale, 0.0);
     /// assert_eq!(p.for_smoothing().acc_excess_scale, 0.0);
     /// assert_eq!(p.for_smoothing().mag_update_every, 1.0);
+    /// assert_eq!(p.for_smoothing().gyr_scale_window, 0.0);
     /// ```
     pub fn for_smoothing(&self) -> Self {
         Self {
@@ -46,6 +51,7 @@ impl SqrtEskfParams {
             // estimates are those measured with it, docs/accuracy.md).
             model_error_rotation_scale: self.model_error_scale,
             mag_update_every: 1.0,
+            gyr_scale_window: 0.0,
             ..self.clone()
         }
     }

@@ -32,6 +32,9 @@ mod coefficients;
 mod per_dt;
 // The parameters of the smoother's passes.
 mod for_smoothing;
+// The gyroscope's scale factors, estimated online.
+mod gyro_scale;
+use gyro_scale::GyroScale;
 use per_dt::{Cached, PerDt, PerHeading, PerInterval, divisor};
 
 params! {
@@ -150,6 +153,18 @@ params! {
         /// shared BROAD trials' coverage in the 0.90–0.98 band; the simulator's IMU (0.3 %)
         /// needs its own 0.003 (`docs/accuracy.md`). Report only.
         gyr_scale_error: f64 = 0.0005, "1", [0.0, 1.0];
+        /// Window of the online estimate of the gyroscope's scale factors (0: none): over
+        /// each window the filter's own inclination corrections are regressed on the
+        /// rotation the gyroscope measured, every window so far at once, and the readings
+        /// are divided by `1 + s` per axis from then on (`docs/methods.md`).
+        gyr_scale_window: f64 = 10.0, "s", [0.0, 1e6];
+        /// How firmly that estimate is held at zero: as if each axis had already turned
+        /// `√gyr_scale_ridge` rad with no scale error seen.
+        gyr_scale_ridge: f64 = 1.0, "rad²", [0.0, 1e12];
+        /// A window whose accelerometer disagrees with the estimated up by `d` (rms, rad)
+        /// weighs `1/(1 + (d/gyr_scale_gate)⁴)`: motion acceleration, not the scale, moves
+        /// the corrections there.
+        gyr_scale_gate: f64 = 0.05, "rad", [1e-6, 10.0];
         /// A sustained acceleration as a model error of the report: both inclination
         /// variances add `acc_excess_scale · max(|ā|²/g² − 1, 0)`, `ā` the low-passed specific
         /// force the inclination is measured from, `g²` the least `|a|²` seen at rest (standard
@@ -443,6 +458,8 @@ lane_state! {
         /// Time since initialisation, s.
         age: T,
         field: FieldReference<T>,
+        /// The gyroscope's scale factors, estimated online (`gyr_scale_window`).
+        gyro_scale: GyroScale<T>,
         initialized: T::Mask,
         /// The orientation was set ([`OrientationFilter::set_quat`]) before the first sample:
         /// start from it rather than from the accelerometer.
@@ -479,6 +496,10 @@ lane_state! {
         model_error_window: T,
         heading_model_error_scale: T,
         gyr_scale_error: T,
+        gyr_scale_window: T,
+        gyr_scale_ridge: T,
+        /// `gyr_scale_gate²`, rad².
+        gyr_scale_gate2: T,
         acc_excess_scale: T,
         /// `acc_spike²`, (m/s²)².
         acc_spike2: T,
@@ -584,6 +605,7 @@ impl<T: Lane> State<T> {
                 lowpass_dip: zero,
                 known: <T::Mask as Mask>::splat(false),
             },
+            gyro_scale: GyroScale::new(),
             initialized: <T::Mask as Mask>::splat(false),
             preset: <T::Mask as Mask>::splat(false),
             preset_covariance: <T::Mask as Mask>::splat(false),

@@ -99,6 +99,7 @@ impl<T: Lane> SqrtEskf<T> {
             // The bias is kept: zero unless `set_bias` gave one before the first sample (the
             // strapdown integration before this sample already used it).
             st.age = T::select(fresh, zero, st.age);
+            st.gyro_scale.restart(fresh, st.correction, zero);
             st.heading_offset_var = T::select(
                 fresh & !st.preset_covariance,
                 T::from_f64(INITIAL_HEADING_VAR),
@@ -160,10 +161,13 @@ impl<T: Lane> SqrtEskf<T> {
     fn propagate(&mut self, s: &Screened<T>) -> (Vec3<T>, T, T::Mask) {
         let zero = T::zero();
         let dt = s.dt;
-        let w = s.gyr - self.state.bias;
+        let w = self.state.gyro_scale.corrected(s.gyr) - self.state.bias;
         self.state.strapdown =
             (self.state.strapdown * Quat::from_rotation_vector(w * dt)).renormalize();
         let r6 = (self.state.correction * self.state.strapdown).to_rotation_matrix();
+        if self.estimates_gyro_scale() {
+            (self.state.gyro_scale).accumulate(&r6, w, dt, s.acc, s.acc_ok);
+        }
 
         // A gate timing out means the model is wrong (wrong start, a bias step): re-inflate
         // the inclination and the bias covariance. During the start-up phase the inclination
@@ -539,6 +543,10 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
         };
         self.correct_bias_at_rest(&s, rest, &mut correction);
         self.inject(correction);
+        if self.estimates_gyro_scale() {
+            let st = &mut self.state;
+            st.gyro_scale.close(st.correction, st.age, &self.coef);
+        }
         if self.nine_d {
             self.correct_heading(&s, w, heading_growth);
         }
