@@ -99,8 +99,26 @@ def scenario_rows(seeds, seconds):
     return rows
 
 
-def broad_rows(folder):
+def broad_parser(description):
+    """The arguments of the scripts that score the BROAD trials: `--broad DIR` (the shared trials
+    beside the repository by default) and `--docs PAGE` (write the tables into that page)."""
+    p = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
+    p.add_argument("--docs", help="write the tables into this file between their markers")
+    return p
+
+
+def broad_trials(folder, stop=True):
+    """The BROAD trials of `folder` (files named after their number, `NN_*.csv`), sorted; with
+    `stop`, exits naming the folder where there are none."""
     files = sorted(p for p in pathlib.Path(folder).glob("*.csv") if p.name[:2].isdigit())
+    if stop and not files:
+        sys.exit(f"no BROAD trials in {folder}")
+    return files
+
+
+def broad_rows(folder):
+    files = broad_trials(folder, stop=False)
     rows = []
     for dof in (9, 6):
         per_file = []

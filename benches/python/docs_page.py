@@ -26,3 +26,13 @@ def write_between_markers(path, name, text):
     head, rest = s.split(begin, 1)
     _, tail = rest.split(end, 1)
     page.write_text(f"{head}{begin}\n{text}\n{end}{tail}")
+
+
+def publish(path, tables):
+    """Prints each table of `tables` (marker name → markdown text, in order) and, where `path`
+    is given, writes each between its markers in that page."""
+    for text in tables.values():
+        print(text)
+    if path:
+        for name, text in tables.items():
+            write_between_markers(path, name, text)

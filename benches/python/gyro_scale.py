@@ -19,8 +19,6 @@ between `<!-- gyro_scale_drift:begin -->` / `<!-- gyro_scale_drift:end -->` and
 `<!-- gyro_scale:begin -->` / `<!-- gyro_scale:end -->` in that file.
 """
 
-import argparse
-import pathlib
 import platform
 import sys
 
@@ -28,14 +26,13 @@ import numpy as np
 
 import docs_page
 import rootfuse as rf
-from accuracy_peers import VQF_VERSION
+from accuracy_peers import VQF_VERSION, broad_parser, broad_trials
 
 try:
     import vqf
 except ImportError:  # a bench, not a test: say what is missing and stop
     sys.exit("vqf is not installed: .venv/bin/pip install vqf")
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
 
 # The flagship without its online scale estimate: the factors below are the only ones applied.
 FLAGSHIP = {"gyr_scale_window": 0.0}
@@ -96,13 +93,8 @@ def errors(rec, factors):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
-    p.add_argument("--docs", help="write the tables into this file between the markers")
-    a = p.parse_args(argv)
-    files = sorted(f for f in pathlib.Path(a.broad).glob("*.csv") if f.name[:2].isdigit())
-    if not files:
-        sys.exit(f"no BROAD trials in {a.broad}")
+    a = broad_parser(__doc__).parse_args(argv)
+    files = broad_trials(a.broad)
     recs = [rf.read_csv(f) for f in files]
     commit = docs_page.commit()
     source = f"{platform.node()}, commit {commit}, `benches/python/gyro_scale.py`, vqf {VQF_VERSION}."
@@ -131,12 +123,7 @@ def main(argv=None):
         cells = " | ".join("{:.3f} / {:.3f} / {:.3f}".format(*np.mean(sums[n], axis=0)) for n in names)
         table.append(f"| {', '.join(f'{x:g}' for x in factors)} | {cells} |")
         print(f"{factors} done", file=sys.stderr)
-    table = "\n".join(table)
-    print(drift)
-    print(table)
-    if a.docs:
-        docs_page.write_between_markers(a.docs, "gyro_scale_drift", drift)
-        docs_page.write_between_markers(a.docs, "gyro_scale", table)
+    docs_page.publish(a.docs, {"gyro_scale_drift": drift, "gyro_scale": "\n".join(table)})
 
 
 if __name__ == "__main__":

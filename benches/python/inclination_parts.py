@@ -19,8 +19,6 @@ tell from the IMU alone. It goes between `<!-- inclination_time_offset:begin -->
 `<!-- inclination_time_offset:end -->`.
 """
 
-import argparse
-import pathlib
 import platform
 import sys
 
@@ -28,14 +26,13 @@ import numpy as np
 
 import docs_page
 import rootfuse as rf
-from accuracy_peers import VQF_VERSION
+from accuracy_peers import VQF_VERSION, broad_parser, broad_trials
 
 try:
     import vqf
 except ImportError:  # a bench, not a test: say what is missing and stop
     sys.exit("vqf is not installed: .venv/bin/pip install vqf")
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
 def up_in_sensor(q):
@@ -110,13 +107,8 @@ def estimates(rec):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--broad", default=str(REPO.parent / "shared" / "broad_csv"))
-    p.add_argument("--docs", help="write the table into this file between the markers")
-    a = p.parse_args(argv)
-    files = sorted(f for f in pathlib.Path(a.broad).glob("*.csv") if f.name[:2].isdigit())
-    if not files:
-        sys.exit(f"no BROAD trials in {a.broad}")
+    a = broad_parser(__doc__).parse_args(argv)
+    files = broad_trials(a.broad)
     rows, sums, recs, ests = [], {}, [], []
     for f in files:
         rec = rf.read_csv(f)
@@ -143,13 +135,8 @@ def main(argv=None):
         lines.append(f"| {trial} | " + " | ".join(fmt(cells[n]) for n in names) + " |")
     means = {n: tuple(np.mean(sums[n], axis=0)) for n in names}
     lines.append("| **mean** | " + " | ".join(fmt(means[n]) for n in names) + " |")
-    text = "\n".join(lines)
-    print(text)
-    offset = time_offset_table(recs, ests, commit)
-    print(offset)
-    if a.docs:
-        docs_page.write_between_markers(a.docs, "inclination_parts", text)
-        docs_page.write_between_markers(a.docs, "inclination_time_offset", offset)
+    docs_page.publish(a.docs, {"inclination_parts": "\n".join(lines),
+                               "inclination_time_offset": time_offset_table(recs, ests, commit)})
 
 
 if __name__ == "__main__":
