@@ -14,9 +14,9 @@ use rootfuse_io::read_dir;
 #[rustfmt::skip]
 const PINNED: &[[f64; 2]] = &[
     [1.057, 0.538], // 02_undisturbed_slow_rotation_B
-    [0.739, 2.368], // 04_undisturbed_slow_rotation_with_breaks_A
+    [0.744, 2.330], // 04_undisturbed_slow_rotation_with_breaks_A
     [1.649, 1.533], // 07_undisturbed_fast_rotation_B
-    [3.119, 8.875], // 08_undisturbed_fast_rotation_with_breaks_A
+    [3.118, 8.866], // 08_undisturbed_fast_rotation_with_breaks_A
     [1.367, 1.052], // 10_undisturbed_slow_translation_A
     [1.435, 1.383], // 12_undisturbed_slow_translation_C
     [0.805, 0.667], // 16_undisturbed_fast_translation_B

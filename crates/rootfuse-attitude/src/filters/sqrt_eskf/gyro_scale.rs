@@ -33,7 +33,8 @@ lane_state! {
         /// The correction `c` at the window's start.
         start: Quat<T>,
         /// The weighted normal equations of every window so far in the unknowns
-        /// `[s, δb·T]` (`δb·T` a window's residual bias times its time, rad).
+        /// `[s, δb·T]`: `δb` the residual bias the filter's estimate left, one for every
+        /// window so far (a nuisance), times a window's time `T` (rad).
         normal: Mat<T, 6, 6>,
         rhs: Vector<T, 6>,
     }
@@ -191,8 +192,9 @@ impl<T: Lane> SqrtEskf<T> {
     }
 
     /// The estimated scale error of the gyroscope per sensor axis, a fraction: the readings
-    /// are taken as `(1 + s)` times the rate (zero before the first estimate, which follows
-    /// the first `gyr_scale_window` after the start-up, or with `gyr_scale_window = 0`).
+    /// are taken as `(1 + s)` times the rate. Zero with `gyr_scale_window = 0`, and until the
+    /// end of the first window that starts after the start-up (windows start at the first
+    /// usable accelerometer sample: with the defaults the estimate comes at 20 s).
     ///
     /// ```
     /// use rootfuse_attitude::prelude::*;

@@ -159,8 +159,9 @@ params! {
         /// are divided by `1 + s` per axis from then on (`docs/methods.md`).
         gyr_scale_window: f64 = 10.0, "s", [0.0, 1e6];
         /// How firmly that estimate is held at zero: as if each axis had already turned
-        /// `√gyr_scale_ridge` rad with no scale error seen.
-        gyr_scale_ridge: f64 = 1.0, "rad²", [0.0, 1e12];
+        /// `√gyr_scale_ridge` rad with no scale error seen (an axis the motion never turns
+        /// about keeps zero; at least 1e-6, so that it cannot stop the others' estimate).
+        gyr_scale_ridge: f64 = 1.0, "rad²", [1e-6, 1e12];
         /// A window whose accelerometer disagrees with the estimated up by `d` (rms, rad)
         /// weighs `1/(1 + (d/gyr_scale_gate)⁴)`: motion acceleration, not the scale, moves
         /// the corrections there.

@@ -69,6 +69,8 @@ impl<T: Lane> SqrtEskf<T> {
         st.long.lowpass.move_rotation(running, &r);
         st.heading_offset = T::zero();
         st.preset |= !running;
+        // The window's sums were taken in the frame the strapdown has just left.
+        st.gyro_scale.restart(running, st.correction, st.age);
     }
 
     /// [`OrientationFilter::set_bias`]: with `sigma`, the bias rows of the factor become
@@ -80,11 +82,14 @@ impl<T: Lane> SqrtEskf<T> {
         sigma: Option<T>,
     ) -> Result<(), StateError> {
         let bias = checked_bias(bias)?;
+        let sigma = sigma.map(|s| checked_sigma(s, 1.0)).transpose()?;
+        // A window runs with one residual bias: a new bias starts a new window.
+        let st = &mut self.state;
+        st.gyro_scale.restart(st.initialized, st.correction, st.age);
         let Some(sigma) = sigma else {
             self.state.bias = bias;
             return Ok(());
         };
-        let sigma = checked_sigma(sigma, 1.0)?;
         // The attitude block `P_θθ = S_θθ·S_θθᵀ + S_θb·S_θbᵀ` refactored as an upper
         // triangle of its own (`S_θb` then zero: no correlation), the bias rows `σ·I`; the
         // time update deferred so far first.

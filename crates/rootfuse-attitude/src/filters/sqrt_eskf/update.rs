@@ -89,7 +89,7 @@ impl<T: Lane> SqrtEskf<T> {
             st.window.seed(fresh, acc_raw);
             st.long.lowpass.seed(fresh, acc_raw);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
-            st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
+            st.rest_gyr_lp = Vec3::select(fresh, st.gyro_scale.corrected(s.gyr), st.rest_gyr_lp);
             // The heading offset and the field reference come from the first usable
             // magnetometer reading, in `correct_heading` (the lane has no reference yet).
             st.heading_offset = T::select(fresh, zero, st.heading_offset);
@@ -132,10 +132,13 @@ impl<T: Lane> SqrtEskf<T> {
         let c = &self.coef;
         let st = &mut self.state;
         let k_rest = self.per_dt.k_rest;
-        st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
+        // The readings divided by their estimated scale, as the propagation takes them, so
+        // that the bias measured at rest is the one the propagation subtracts.
+        let gyr = st.gyro_scale.corrected(s.gyr);
+        st.rest_gyr_lp += (gyr - st.rest_gyr_lp) * k_rest;
         let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
         st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
-        let gyr_dev = (s.gyr - st.rest_gyr_lp).norm_squared();
+        let gyr_dev = (gyr - st.rest_gyr_lp).norm_squared();
         let acc_dev = (acc_for_rest - st.rest_acc_lp).norm_squared();
         // A slow constant-rate turn has a small deviation too: the bias-corrected low-passed
         // rate must also be small (a rotating sensor is not at rest).
