@@ -89,7 +89,7 @@ impl<T: Lane> SqrtEskf<T> {
             st.window.seed(fresh, acc_raw);
             st.long.lowpass.seed(fresh, acc_raw);
             st.rest_acc_lp = Vec3::select(fresh, acc_raw, st.rest_acc_lp);
-            st.rest_gyr_lp = Vec3::select(fresh, st.gyro_scale.corrected(s.gyr), st.rest_gyr_lp);
+            st.rest_gyr_lp = Vec3::select(fresh, s.gyr, st.rest_gyr_lp);
             // The heading offset and the field reference come from the first usable
             // magnetometer reading, in `correct_heading` (the lane has no reference yet).
             st.heading_offset = T::select(fresh, zero, st.heading_offset);
@@ -132,13 +132,10 @@ impl<T: Lane> SqrtEskf<T> {
         let c = &self.coef;
         let st = &mut self.state;
         let k_rest = self.per_dt.k_rest;
-        // The readings divided by their estimated scale, as the propagation takes them, so
-        // that the bias measured at rest is the one the propagation subtracts.
-        let gyr = st.gyro_scale.corrected(s.gyr);
-        st.rest_gyr_lp += (gyr - st.rest_gyr_lp) * k_rest;
+        st.rest_gyr_lp += (s.gyr - st.rest_gyr_lp) * k_rest;
         let acc_for_rest = Vec3::select(s.acc_ok, acc_raw, st.rest_acc_lp);
         st.rest_acc_lp += (acc_for_rest - st.rest_acc_lp) * k_rest;
-        let gyr_dev = (gyr - st.rest_gyr_lp).norm_squared();
+        let gyr_dev = (s.gyr - st.rest_gyr_lp).norm_squared();
         let acc_dev = (acc_for_rest - st.rest_acc_lp).norm_squared();
         // A slow constant-rate turn has a small deviation too: the bias-corrected low-passed
         // rate must also be small (a rotating sensor is not at rest).
@@ -164,7 +161,7 @@ impl<T: Lane> SqrtEskf<T> {
     fn propagate(&mut self, s: &Screened<T>) -> (Vec3<T>, T, T::Mask) {
         let zero = T::zero();
         let dt = s.dt;
-        let w = self.state.gyro_scale.corrected(s.gyr) - self.state.bias;
+        let w = s.gyr - self.state.bias;
         self.state.strapdown =
             (self.state.strapdown * Quat::from_rotation_vector(w * dt)).renormalize();
         let r6 = (self.state.correction * self.state.strapdown).to_rotation_matrix();
@@ -503,6 +500,10 @@ impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
     }
     fn update(&mut self, sample: &ImuSample<T>, dt: T) {
         let mut s = Screened::for_dof(sample, dt, &self.bounds, &mut self.rejections, self.nine_d);
+        // The readings divided by their estimated scale (the readings themselves before the
+        // first estimate): the start, the rest detector and the propagation all take these,
+        // so that the bias measured at rest is the one the propagation subtracts.
+        s.gyr = self.state.gyro_scale.corrected(s.gyr);
         // A spike is an unusable accelerometer sample from here on: every low-pass, detector
         // and correction below takes the accelerometer only where `acc_ok`.
         let (spike, translation2) = self.acc_spike(&s);
