@@ -14,6 +14,11 @@ slope of a line fitted to the signed error, times the duration) and their ratio.
 scores both filters with the gyroscope's readings multiplied per axis: a factor that helps
 both alike is the recording's sensor, not a filter. The flagship runs without its own
 estimate of the scale (`gyr_scale_window = 0`), so that the factor is the only one applied.
+`--cv` adds the leave-one-trial-out choice of the flagship's own estimate's parameters
+(`gyr_scale_window` × `gyr_scale_ridge` × `gyr_scale_gate`, 27 sets; each fold picks the set
+with the least `9D/2.10 + 6D/2.35 + inclination/0.70` on the other trials, the issue's targets),
+over every set and over the sets with the default gate, between
+`<!-- gyro_scale_cv:begin -->` / `<!-- gyro_scale_cv:end -->` (about 2 CPU-minutes).
 With `--docs` the tables replace the text
 between `<!-- gyro_scale_drift:begin -->` / `<!-- gyro_scale_drift:end -->` and
 `<!-- gyro_scale:begin -->` / `<!-- gyro_scale:end -->` in that file.
@@ -92,8 +97,55 @@ def errors(rec, factors):
     return out
 
 
+# The parameter grid of the cross-validation (`--cv`), and the objective: the issue's targets.
+CV_GRID = [dict(gyr_scale_window=w, gyr_scale_ridge=r, gyr_scale_gate=g)
+           for w in (5.0, 10.0, 20.0) for r in (1.0, 3.0, 10.0) for g in (0.05, 0.1, 0.2)]
+TARGETS = np.array([2.10, 2.35, 0.70])
+
+
+def flagship_scores(rec, params):
+    """The flagship's 9D total, 6D total and 6D inclination RMSE on `rec` with `params`."""
+    out = []
+    for dof, mag in ((9, rec["mag"]), (6, None)):
+        q = rf.Filter("flagship", dof=dof, **params).update_batch(rec["gyr"], rec["acc"], mag, t=rec["t"])["quat"]
+        e = rf.rmse(q, rec, dof=dof)
+        out += [e["total"]] if dof == 9 else [e["total"], e["inclination"]]
+    return out
+
+
+def cross_validation(recs, source):
+    """Leave-one-trial-out over `CV_GRID` (a markdown table): over every set, and over the sets
+    with the default gate."""
+    scores = np.array([[flagship_scores(rec, p) for rec in recs] for p in CV_GRID])
+    print("cross-validation scored", file=sys.stderr)
+    default_gate = rf.Filter("flagship").params["gyr_scale_gate"]
+    lines = [f"Leave one trial out over {len(CV_GRID)} sets of `gyr_scale_window` (s) / `gyr_scale_ridge` "
+             f"(rad²) / `gyr_scale_gate` (rad), mean RMSE in degrees, 9D total / 6D total / 6D "
+             f"inclination. {source}", "",
+             "| sets | in sample, range over the sets | picked (folds) | held out |", "|---|---|---|---|"]
+    for label, sets in (("every set", range(len(CV_GRID))),
+                        (f"gate {default_gate:g}", [i for i, p in enumerate(CV_GRID)
+                                                     if p["gyr_scale_gate"] == default_gate])):
+        sets = list(sets)
+        means = scores[sets].mean(axis=1)
+        held, picked = [], {}
+        for t in range(len(recs)):
+            others = [k for k in range(len(recs)) if k != t]
+            best = sets[int(np.argmin((scores[sets][:, others].mean(axis=1) / TARGETS).sum(axis=1)))]
+            held.append(scores[best, t])
+            picked[best] = picked.get(best, 0) + 1
+        ranges = " / ".join(f"{lo:.3f}–{hi:.3f}" for lo, hi in zip(means.min(axis=0), means.max(axis=0)))
+        top = max(picked, key=picked.get)
+        p = CV_GRID[top]
+        choice = f"{p['gyr_scale_window']:g} / {p['gyr_scale_ridge']:g} / {p['gyr_scale_gate']:g} ({picked[top]})"
+        lines.append(f"| {label} | {ranges} | {choice} | " + " / ".join(f"{x:.3f}" for x in np.mean(held, axis=0)) + " |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
-    a = broad_parser(__doc__).parse_args(argv)
+    parser = broad_parser(__doc__)
+    parser.add_argument("--cv", action="store_true", help="also cross-validate the estimate's parameters")
+    a = parser.parse_args(argv)
     files = broad_trials(a.broad)
     recs = [rf.read_csv(f) for f in files]
     commit = docs_page.commit()
@@ -123,7 +175,10 @@ def main(argv=None):
         cells = " | ".join("{:.3f} / {:.3f} / {:.3f}".format(*np.mean(sums[n], axis=0)) for n in names)
         table.append(f"| {', '.join(f'{x:g}' for x in factors)} | {cells} |")
         print(f"{factors} done", file=sys.stderr)
-    docs_page.publish(a.docs, {"gyro_scale_drift": drift, "gyro_scale": "\n".join(table)})
+    tables = {"gyro_scale_drift": drift, "gyro_scale": "\n".join(table)}
+    if a.cv:
+        tables["gyro_scale_cv"] = cross_validation(recs, source)
+    docs_page.publish(a.docs, tables)
 
 
 if __name__ == "__main__":
