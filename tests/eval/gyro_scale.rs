@@ -1,7 +1,7 @@
 //! The flagship's online estimate of the gyroscope's scale factors (`gyr_scale_window`) on
 //! simulated IMUs whose scale error is known: it finds the error and the inclination gains.
 use rootfuse_attitude::filters::{SqrtEskf, SqrtEskfParams};
-use rootfuse_attitude::{Dof, Recording, Vec3};
+use rootfuse_attitude::{Dof, OrientationFilter, Recording, Vec3};
 use rootfuse_eval::metrics::{Alignment, evaluate};
 
 /// The simulated scale error of the gyroscope per axis (a fraction: `ω_m = (1 + s)·ω`).
@@ -18,12 +18,13 @@ fn recording(seed: u64) -> Recording {
     sim.run().expect("a valid simulation").recording
 }
 
-/// The flagship in 6D over `rec` with `window` (s, 0: no estimate): its final scale estimate
-/// and the inclination RMSE, degrees.
-fn run(rec: &Recording, window: f64) -> (Vec3<f64>, f64) {
+/// The flagship in 6D over `rec` with `window` (s, 0: no estimate) and `axis_ridge`
+/// (`gyr_scale_axis_ridge`, rad²): its final scale estimate and the inclination RMSE, degrees.
+fn run(rec: &Recording, window: f64, axis_ridge: f64) -> (Vec3<f64>, f64) {
     let p = SqrtEskfParams {
         dof: Dof::Six,
         gyr_scale_window: window,
+        gyr_scale_axis_ridge: axis_ridge,
         ..SqrtEskfParams::default()
     };
     let mut f = SqrtEskf::<f64>::new(&p);
@@ -32,24 +33,39 @@ fn run(rec: &Recording, window: f64) -> (Vec3<f64>, f64) {
     (f.gyro_scale(), m.inclination)
 }
 
+/// With the axes estimated on their own (`gyr_scale_axis_ridge = gyr_scale_ridge`, as in 9D)
+/// each axis's error is found to within 0.1 %; with the defaults, which hold the axes to
+/// their mean in 6D, their mean is found to within 0.1 % (measured: 0.03–0.08 % off, the
+/// axes pulled toward it). Either way the inclination gains over no estimate.
 #[test]
 fn finds_a_simulated_scale_error_and_the_inclination_gains() {
+    let defaults = SqrtEskfParams::default();
+    let mean = |s: [f64; 3]| s.iter().sum::<f64>() / 3.0;
     for seed in 0..3 {
         let rec = recording(seed);
-        let (scale, with) = run(&rec, 10.0);
-        let (none, without) = run(&rec, 0.0);
+        let (none, without) = run(&rec, 0.0, defaults.gyr_scale_axis_ridge);
         assert_eq!(none, Vec3::zero());
-        let found = scale.to_array();
-        eprintln!("seed {seed}: scale {found:?}, inclination {with:.3} against {without:.3}");
-        for (axis, (s, truth)) in found.iter().zip(SCALE).enumerate() {
+        let (each, with_each) = run(&rec, 10.0, defaults.gyr_scale_ridge);
+        let (held, with_held) = run(&rec, 10.0, defaults.gyr_scale_axis_ridge);
+        let (each, held) = (each.to_array(), held.to_array());
+        eprintln!(
+            "seed {seed}: each axis {each:?}, inclination {with_each:.3}; held to the mean {held:?}, {with_held:.3}; none {without:.3}"
+        );
+        for (axis, (s, truth)) in each.iter().zip(SCALE).enumerate() {
             assert!(
                 (s - truth).abs() < 0.001,
-                "seed {seed} axis {axis}: {found:?}"
+                "seed {seed} axis {axis}: {each:?}"
             );
         }
         assert!(
-            with < 0.9 * without,
-            "seed {seed}: {with} against {without}"
+            (mean(held) - mean(SCALE)).abs() < 0.001,
+            "seed {seed}: {held:?}"
         );
+        for with in [with_each, with_held] {
+            assert!(
+                with < 0.9 * without,
+                "seed {seed}: {with} against {without}"
+            );
+        }
     }
 }

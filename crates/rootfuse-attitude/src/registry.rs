@@ -171,6 +171,9 @@ macro_rules! registry {
             fn bias(&self) -> Vec3<T> {
                 match self { $(Self::$variant(f) => f.bias(),)* }
             }
+            fn gyro_scale(&self) -> Vec3<T> {
+                match self { $(Self::$variant(f) => f.gyro_scale(),)* }
+            }
             #[inline]
             fn rejections(&self) -> &Rejections<T> {
                 match self { $(Self::$variant(f) => f.rejections(),)* }

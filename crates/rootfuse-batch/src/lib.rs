@@ -62,7 +62,7 @@
 //! | `mahony` | 196 | 344 | 188 |
 //! | `madgwick` | 192 | 328 | 184 |
 //! | `ekf` | 400 | 752 | 390 |
-//! | `sqrt-eskf` | 1396 | 2744 | 1362 |
+//! | `sqrt-eskf` | 1400 | 2752 | 1366 |
 //! | `complementary-reconstruction` | 336 | 624 | 326 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |

@@ -500,6 +500,19 @@ impl Filter {
         Ok(PyArray1::from_slice(py, &b))
     }
 
+    /// Current estimate of the gyroscope's scale error per sensor axis, a fraction `s` in
+    /// `ω_measured = (1 + s)·ω`, float64 `(3,)`: the flagship's (`gyr_scale_window > 0`;
+    /// zeros until its first window closes, 20 s with the defaults), zeros for the other
+    /// filters.
+    #[getter]
+    fn gyro_scale<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let s = with_state!(&*self.lock()?, f => {
+            let s = f.gyro_scale();
+            [widen(s.x), widen(s.y), widen(s.z)]
+        });
+        Ok(PyArray1::from_slice(py, &s))
+    }
+
     /// Current attitude-error covariance, rad², earth frame ENU (`[2, 2]` is heading),
     /// float64 `(3, 3)`; None for filters without one.
     #[getter]

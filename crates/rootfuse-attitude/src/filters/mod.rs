@@ -136,6 +136,12 @@ pub trait OrientationFilter<T: Lane> {
     fn bias(&self) -> Vec3<T> {
         Vec3::zero()
     }
+    /// Current estimate of the gyroscope's scale error per sensor axis, a fraction `s` in
+    /// `ω_measured = (1 + s)·ω`, for filters that estimate it (the flagship with
+    /// `gyr_scale_window > 0`); zero otherwise.
+    fn gyro_scale(&self) -> Vec3<T> {
+        Vec3::zero()
+    }
     /// Per-lane counts of skipped samples and corrections, by reason.
     fn rejections(&self) -> &Rejections<T>;
     /// Covariance of the attitude error of [`quat`](Self::quat), rad², for filters that carry

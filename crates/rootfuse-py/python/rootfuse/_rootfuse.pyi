@@ -170,6 +170,9 @@ class Filter:
     def bias(self) -> _F64:
         """Gyro-bias estimate, rad/s, (3,)."""
     @property
+    def gyro_scale(self) -> _F64:
+        """Gyroscope scale-error estimate per sensor axis, a fraction (readings = (1 + s)·rate), (3,); zeros without one."""
+    @property
     def covariance(self) -> Optional[_F64]:
         """Attitude-error covariance, rad², earth frame ENU, (3, 3); None without one."""
     @property

@@ -28,6 +28,15 @@ impl<T: Lane> Coefficients<T> {
             gyr_scale_error: p.coef(|p| p.gyr_scale_error),
             gyr_scale_window: p.coef(|p| p.gyr_scale_window),
             gyr_scale_ridge: p.coef(|p| p.gyr_scale_ridge),
+            // In 9D the field corrects the heading the axis about up would drift, so each
+            // axis is estimated on its own there.
+            gyr_scale_axis_ridge: p.coef(|p| {
+                if p.dof.uses_magnetometer() {
+                    p.gyr_scale_ridge
+                } else {
+                    p.gyr_scale_axis_ridge
+                }
+            }),
             gyr_scale_gate2: p.coef(|p| p.gyr_scale_gate * p.gyr_scale_gate),
             acc_excess_scale: p.coef(|p| p.acc_excess_scale),
             acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),

@@ -157,13 +157,16 @@ impl<T: Lane> GyroScale<T> {
         }
         self.normal = Mat::select(counted, &normal, &self.normal);
         self.rhs = Mat::select(counted, &rhs, &self.rhs);
+        // The prior on `s`: `gyr_scale_ridge` on the axes' mean and `gyr_scale_axis_ridge` on
+        // their differences from it, `λ_d·I + (λ_c − λ_d)/3·11ᵀ`.
         let mut regularised = self.normal;
-        for k in 0..6 {
-            regularised.m[k][k] += if k < 3 {
-                coef.gyr_scale_ridge
-            } else {
-                T::from_f64(BIAS_RIDGE)
-            };
+        let common = (coef.gyr_scale_ridge - coef.gyr_scale_axis_ridge) * T::from_f64(1.0 / 3.0);
+        for k in 0..3 {
+            for l in 0..3 {
+                regularised.m[k][l] += common;
+            }
+            regularised.m[k][k] += coef.gyr_scale_axis_ridge;
+            regularised.m[k + 3][k + 3] += T::from_f64(BIAS_RIDGE);
         }
         let (l, solved) = regularised.cholesky();
         let x = l.cholesky_solve(&self.rhs);
@@ -189,20 +192,5 @@ impl<T: Lane> SqrtEskf<T> {
     #[inline]
     pub(super) fn estimates_gyro_scale(&self) -> bool {
         self.coef.gyr_scale_window.simd_gt(T::zero()).any()
-    }
-
-    /// The estimated scale error of the gyroscope per sensor axis, a fraction: the readings
-    /// are taken as `(1 + s)` times the rate. Zero with `gyr_scale_window = 0`, and until the
-    /// end of the first window that starts after the start-up (windows start at the first
-    /// usable accelerometer sample: with the defaults the estimate comes at 20 s).
-    ///
-    /// ```
-    /// use rootfuse_attitude::prelude::*;
-    ///
-    /// let filter = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
-    /// assert_eq!(filter.gyro_scale(), Vec3::zero());
-    /// ```
-    pub fn gyro_scale(&self) -> Vec3<T> {
-        self.state.gyro_scale.scale()
     }
 }

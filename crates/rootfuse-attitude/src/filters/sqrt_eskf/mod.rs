@@ -162,6 +162,14 @@ params! {
         /// `√gyr_scale_ridge` rad with no scale error seen (an axis the motion never turns
         /// about keeps zero; at least 1e-6, so that it cannot stop the others' estimate).
         gyr_scale_ridge: f64 = 1.0, "rad²", [1e-6, 1e12];
+        /// In 6D, how firmly the three axes' estimates are held to their mean: as if the
+        /// axes had turned `√gyr_scale_axis_ridge` rad with no difference between their scale
+        /// errors seen. The inclination cannot see the scale of the axis about up, whose
+        /// error turns only the heading, which nothing corrects in 6D; held to the mean, that
+        /// axis takes the error the others show (BROAD's gyroscope errs alike on its axes;
+        /// `docs/accuracy.md`). Equal to `gyr_scale_ridge`, each axis is estimated on its own,
+        /// as it always is in 9D, where the field corrects that heading.
+        gyr_scale_axis_ridge: f64 = 30.0, "rad²", [1e-6, 1e12];
         /// A window whose accelerometer disagrees with the estimated up by `d` (rms, rad)
         /// weighs `1/(1 + (d/gyr_scale_gate)⁴)`: motion acceleration, not the scale, moves
         /// the corrections there.
@@ -499,6 +507,7 @@ lane_state! {
         gyr_scale_error: T,
         gyr_scale_window: T,
         gyr_scale_ridge: T,
+        gyr_scale_axis_ridge: T,
         /// `gyr_scale_gate²`, rad².
         gyr_scale_gate2: T,
         acc_excess_scale: T,

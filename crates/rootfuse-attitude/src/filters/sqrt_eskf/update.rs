@@ -495,6 +495,20 @@ pub(super) fn row_norm2<T: Lane>(s: &Mat<T, 6, 6>, i: usize) -> T {
 }
 
 impl<T: Lane> OrientationFilter<T> for SqrtEskf<T> {
+    /// The estimated scale error of the gyroscope per sensor axis, a fraction: the readings
+    /// are taken as `(1 + s)` times the rate. Zero with `gyr_scale_window = 0`, and until the
+    /// end of the first window that starts after the start-up (windows start at the first
+    /// usable accelerometer sample: with the defaults the estimate comes at 20 s).
+    ///
+    /// ```
+    /// use rootfuse_attitude::prelude::*;
+    ///
+    /// let filter = SqrtEskf::<f64>::new(&SqrtEskfParams::default());
+    /// assert_eq!(filter.gyro_scale(), Vec3::zero());
+    /// ```
+    fn gyro_scale(&self) -> Vec3<T> {
+        self.state.gyro_scale.scale()
+    }
     fn smoothing_gyro_tau(&self) -> f64 {
         self.params.smoothing_gyro_tau
     }
