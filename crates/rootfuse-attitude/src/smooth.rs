@@ -51,6 +51,7 @@
 
 use crate::blocks::{LowPassGain, integrate_gyro, turn_in_earth};
 use crate::filters::Rejections;
+use crate::registry::FilterSpec;
 use crate::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mask;
 use rootfuse_lane::Mat;
@@ -67,6 +68,10 @@ pub struct Smoothed {
     pub forward_only: usize,
     /// What the forward run skipped, by reason (the backward run sees the same samples).
     pub rejections: Rejections<f64>,
+    /// The gyroscope's scale error per sensor axis (a fraction, `ω_measured = (1 + s)·ω`) by
+    /// which both passes' readings were divided ([`smooth_spec`] with
+    /// `smoothing_gyro_scale`); `None` where they were not.
+    pub gyro_scale: Option<Vec3<f64>>,
 }
 
 /// Why a recording could not be smoothed.
@@ -87,6 +92,71 @@ impl core::fmt::Display for SmoothError {
     }
 }
 impl std::error::Error for SmoothError {}
+
+/// [`forward_backward`] for a filter of the registry, as `rootfuse run --offline` and
+/// Python's `smooth` run it: both passes built from [`FilterSpec::for_smoothing`], in two
+/// `f64` lanes. Where the spec asks for it (`smoothing_gyro_scale = 1`, the flagship with
+/// its scale estimate on), the filter first runs forward once, online in `f32`, and both
+/// passes take the gyroscope's readings divided by `1 + s` per axis, `s` the scale error it
+/// estimated ([`OrientationFilter::gyro_scale`] at the end; [`Smoothed::gyro_scale`]).
+/// `nine_d` as in [`forward_backward`].
+///
+/// ```
+/// use rootfuse_attitude::registry::FilterSpec;
+/// use rootfuse_attitude::smooth::smooth_spec;
+/// use rootfuse_attitude::{Recording, Vec3};
+/// let n = 100;
+/// let rec = Recording {
+///     name: "rest".into(),
+///     t: (0..n).map(|i| i as f64 * 0.01).collect(),
+///     gyr: vec![Vec3::zero(); n],
+///     acc: vec![Vec3::new(0.0, 0.0, 9.81); n],
+///     mag: Some(vec![Vec3::new(0.0, 20.0, -40.0); n]),
+///     ..Default::default()
+/// };
+/// let mut spec = FilterSpec::new("flagship").unwrap();
+/// spec.set("smoothing_gyro_scale=1").unwrap();
+/// let out = smooth_spec(&rec, &spec, true).unwrap();
+/// assert_eq!(out.quat.len(), n);
+/// // One second at rest: no window closed, no scale estimated.
+/// assert_eq!(out.gyro_scale, Some(Vec3::zero()));
+/// ```
+///
+/// # Errors
+/// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
+pub fn smooth_spec(
+    rec: &Recording,
+    spec: &FilterSpec,
+    nine_d: bool,
+) -> Result<Smoothed, SmoothError> {
+    let passes = spec.for_smoothing();
+    let build = || passes.build::<f64x2>();
+    let wanted = spec.get("smoothing_gyro_scale") == Some(1.0)
+        && spec.get("gyr_scale_window").is_some_and(|w| w > 0.0);
+    if !wanted {
+        return forward_backward(rec, build, nine_d);
+    }
+    let mut online = spec.build::<f32>();
+    let narrow = |v: Vec3<f64>| Vec3::<f32>::from_f64([v.x, v.y, v.z]);
+    for i in 0..rec.len() {
+        let s = rec.sample(i);
+        let sample = ImuSample::new(narrow(s.gyr), narrow(s.acc), narrow(s.mag));
+        online.update(&sample, rec.dt(i) as f32);
+    }
+    let s = online.gyro_scale();
+    let scale = Vec3::new(f64::from(s.x), f64::from(s.y), f64::from(s.z));
+    let mut scaled = rec.clone();
+    for g in &mut scaled.gyr {
+        *g = Vec3::new(
+            g.x / (1.0 + scale.x),
+            g.y / (1.0 + scale.y),
+            g.z / (1.0 + scale.z),
+        );
+    }
+    let mut out = forward_backward(&scaled, build, nine_d)?;
+    out.gyro_scale = Some(scale);
+    Ok(out)
+}
 
 /// One pass: estimate and attitude covariance after each sample.
 type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
@@ -215,6 +285,7 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
         quat,
         forward_only,
         rejections: filter.rejections().lane(0),
+        gyro_scale: None,
     })
 }
 

@@ -9,7 +9,7 @@ use crate::signal::{exit_interrupted, install_signal_handler, interrupted};
 use crate::stream::{Job, Totals, run_columnar, run_csv};
 use clap::Args;
 use rootfuse_attitude::OrientationFilter;
-use rootfuse_attitude::smooth::forward_backward;
+use rootfuse_attitude::smooth::smooth_spec;
 use rootfuse_attitude::units::Units;
 use rootfuse_batch::{RejectionTotals, samples_with_missing_imu};
 use rootfuse_columnar::Format;
@@ -432,13 +432,8 @@ fn smooth_files(
                 ));
             }
             crate::stream::check_mag(job, file, rec.mag.is_some())?;
-            let spec = job.spec.for_smoothing();
-            let smoothed = forward_backward(
-                &rec,
-                || spec.build::<rootfuse_lane::wide::f64x2>(),
-                job.nine_d,
-            )
-            .map_err(|e| format!("{}: {e}", rec.name))?;
+            let smoothed = smooth_spec(&rec, job.spec, job.nine_d)
+                .map_err(|e| format!("{}: {e}", rec.name))?;
             if interrupted() {
                 exit_interrupted();
             }

@@ -14,7 +14,9 @@ use pyo3::types::PyDict;
 /// gyr, acc, mag (or None): `(N, 3)`; `t` sample times, s `(N,)` (or `dt`, a fixed step:
 /// times `k·dt`; the smoother reads steps as differences of times, like `rootfuse run
 /// --offline`). Returns `{"quat": (N, 4), "forward_only": int}`: `forward_only` counts the
-/// samples where fusion was impossible and the forward estimate was kept.
+/// samples where fusion was impossible and the forward estimate was kept; with
+/// `smoothing_gyro_scale=1` (flagship) also `"gyro_scale"` `(3,)`, the scale error per axis
+/// (a fraction) an online run estimated and both passes' readings were divided by.
 #[pyfunction]
 #[pyo3(signature = (name, gyr, acc, mag=None, *, t=None, dt=None, dof=None, **params))]
 #[allow(clippy::too_many_arguments)]
@@ -40,14 +42,7 @@ pub fn smooth<'py>(
     let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, steps.times(n), None, None);
     let nine_d = spec.uses_magnetometer();
-    let spec = spec.for_smoothing();
-    let result = py.detach(|| {
-        rootfuse_attitude::smooth::forward_backward(
-            &rec,
-            || spec.build::<rootfuse_lane::wide::f64x2>(),
-            nine_d,
-        )
-    });
+    let result = py.detach(|| rootfuse_attitude::smooth::smooth_spec(&rec, &spec, nine_d));
     let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
     let q: Vec<f64> = smoothed
         .quat
@@ -57,5 +52,8 @@ pub fn smooth<'py>(
     let out = PyDict::new(py);
     out.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
     out.set_item("forward_only", smoothed.forward_only)?;
+    if let Some(s) = smoothed.gyro_scale {
+        out.set_item("gyro_scale", PyArray1::from_slice(py, &[s.x, s.y, s.z]))?;
+    }
     Ok(out)
 }

@@ -372,3 +372,17 @@ def test_gyro_scale_follows_the_readings_scale():
     f = rf.Filter("mahony")
     f.update_batch(r["gyr"], r["acc"], None, t=r["t"])
     np.testing.assert_array_equal(f.gyro_scale, np.zeros(3))
+
+
+def test_smooth_shares_the_online_scale_estimate_on_request():
+    # smoothing_gyro_scale=1: the smoother first runs the flagship online in float32 and
+    # reports (and divides both passes' readings by) the scale error that run ends with.
+    r = rf.simulate("fast-rotation", seed=1, duration_s=60.0)
+    plain = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6)
+    assert "gyro_scale" not in plain
+    shared = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6, smoothing_gyro_scale=1)
+    f = rf.Filter("flagship", dof=6, precision="f32")
+    f.update_batch(r["gyr"], r["acc"], None, t=r["t"])
+    np.testing.assert_array_equal(shared["gyro_scale"], f.gyro_scale)
+    assert np.any(f.gyro_scale != 0)
+    assert not np.array_equal(shared["quat"], plain["quat"])

@@ -102,6 +102,7 @@ class _ManyFinal(TypedDict):
 class _Smoothed(TypedDict):
     quat: _F64
     forward_only: int
+    gyro_scale: NotRequired[_F64]
 
 class _Rmse(TypedDict):
     total: float
@@ -205,7 +206,8 @@ def smooth(
     **params: float,
 ) -> _Smoothed:
     """Offline forward-backward smoothing (f64) for filters with an attitude covariance:
-    ``{"quat": (N, 4), "forward_only": int}``."""
+    ``{"quat": (N, 4), "forward_only": int}``, and ``"gyro_scale"`` (3,) with
+    ``smoothing_gyro_scale=1`` (flagship)."""
 
 @overload
 def run_many(
