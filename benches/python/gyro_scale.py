@@ -116,8 +116,9 @@ def flagship_scores(rec, params):
 
 
 def cross_validation(recs, source):
-    """Leave-one-trial-out over `CV_GRID` (a markdown table): over every set, and over the sets
-    with the default gate."""
+    """Leave-one-trial-out over `CV_GRID` (a markdown table): over every set, over the sets with
+    the default gate, and over those with the default gate and ridge (the two the simulator
+    sets, docs/accuracy.md)."""
     scores = np.array([[flagship_scores(rec, p) for rec in recs] for p in CV_GRID])
     print("cross-validation scored", file=sys.stderr)
     defaults = rf.Filter("flagship").params

@@ -12,9 +12,9 @@ accelerometer offset or misalignment against the optical frame), one that differ
 the filter. With `--docs` the table replaces the text between `<!-- inclination_parts:begin -->`
 and `<!-- inclination_parts:end -->` in that file.
 
-A second table scores the same estimates (the flagship's defaults and VQF online) against the
-optical truth taken a fraction of a sample earlier (`truth_earlier`): where both filters gain
-alike, the recording's IMU samples lag its optical truth by that much, which no estimator can
+A second table scores the same estimates (the flagship's defaults and VQF online), and both
+smoothed (`rootfuse.smooth` and `offlineVQF`, 6D), against the optical truth taken a fraction
+of a sample earlier (`truth_earlier`): where the filters gain alike, the recording's IMU samples lag its optical truth by that much, which no estimator can
 tell from the IMU alone. It goes between `<!-- inclination_time_offset:begin -->` and
 `<!-- inclination_time_offset:end -->`.
 """
@@ -71,9 +71,9 @@ TIME_SHIFTS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
 
 
 def time_offset_table(recs, est_by_trial, commit):
-    """Mean inclination RMSE of the flagship and VQF online against the truth shifted earlier
-    by each of `TIME_SHIFTS` samples (a markdown table)."""
-    names = ("flagship", "VQF online")
+    """Mean inclination RMSE of the flagship and VQF, online and offline, against the truth
+    shifted earlier by each of `TIME_SHIFTS` samples (a markdown table)."""
+    names = ("flagship", "VQF online", "flagship offline", "VQF offline")
     sums = {(n, s): [] for n in names for s in TIME_SHIFTS}
     for rec, est in zip(recs, est_by_trial):
         for s in TIME_SHIFTS:
@@ -82,7 +82,7 @@ def time_offset_table(recs, est_by_trial, commit):
                 sums[n, s].append(rf.rmse(est[n], shifted, dof=6)["inclination"])
     dt_ms = 1e3 * float(np.median(np.diff(recs[0]["t"])))
     lines = [
-        f"Mean inclination RMSE over the trials, degrees (6D, online), against the optical truth "
+        f"Mean inclination RMSE over the trials, degrees (6D), against the optical truth "
         f"taken earlier. {platform.node()}, commit {commit}, `benches/python/inclination_parts.py`, "
         f"vqf {VQF_VERSION}.",
         "",
@@ -106,6 +106,16 @@ def estimates(rec):
     }
 
 
+def offline_estimates(rec):
+    """The flagship smoothed and VQF offline, 6D (quaternions (N, 4))."""
+    t = rec["t"]
+    gyr, acc = np.ascontiguousarray(rec["gyr"]), np.ascontiguousarray(rec["acc"])
+    return {
+        "flagship offline": rf.smooth("flagship", gyr, acc, None, t=t, dof=6)["quat"],
+        "VQF offline": vqf.offlineVQF(gyr, acc, None, float(np.median(np.diff(t))))["quat6D"],
+    }
+
+
 def main(argv=None):
     a = broad_parser(__doc__).parse_args(argv)
     files = broad_trials(a.broad)
@@ -114,7 +124,7 @@ def main(argv=None):
         rec = rf.read_csv(f)
         est = estimates(rec)
         recs.append(rec)
-        ests.append(est)
+        ests.append(dict(est, **offline_estimates(rec)))
         used = rf.error_series(est["flagship"], rec, dof=6)["used"]
         cells = {name: parts(q, rec, used) for name, q in est.items()}
         for name, c in cells.items():

@@ -91,18 +91,42 @@ impl Recording {
     /// assert_eq!(est.len(), rec.len());
     /// ```
     pub fn estimate<T: Lane>(&self, filter: &mut impl OrientationFilter<T>) -> Vec<Quat<f64>> {
+        let mut out = Vec::with_capacity(self.len());
+        self.run(filter, |f| {
+            let q = f.quat().lane(0);
+            out.push(Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into()));
+        });
+        out
+    }
+    /// Runs `filter` over every sample in order, converted as by
+    /// [`estimate`](Self::estimate), and calls `each` with it after every update (where
+    /// only the final state is wanted, `|_| ()`).
+    ///
+    /// ```
+    /// use rootfuse_attitude::filters::{Mahony, MahonyParams};
+    /// use rootfuse_attitude::{OrientationFilter, Recording, Vec3};
+    /// let rec = Recording {
+    ///     t: vec![0.0, 0.01, 0.02],
+    ///     gyr: vec![Vec3::zero(); 3],
+    ///     acc: vec![Vec3::new(0.0, 0.0, 9.81); 3],
+    ///     ..Default::default()
+    /// };
+    /// let mut filter = Mahony::<f64>::new(&MahonyParams::default());
+    /// let mut updates = 0;
+    /// rec.run(&mut filter, |_| updates += 1);
+    /// assert_eq!(updates, 3);
+    /// assert!((filter.quat().norm() - 1.0).abs() < 1e-12);
+    /// ```
+    pub fn run<T: Lane, F: OrientationFilter<T>>(&self, filter: &mut F, mut each: impl FnMut(&F)) {
         let v = |x: Vec3<f64>| Vec3::<T>::from_f64([x.x, x.y, x.z]);
-        (0..self.len())
-            .map(|i| {
-                let s = self.sample(i);
-                filter.update(
-                    &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
-                    T::from_f64(self.dt(i)),
-                );
-                let q = filter.quat().lane(0);
-                Quat::new(q.w.into(), q.x.into(), q.y.into(), q.z.into())
-            })
-            .collect()
+        for i in 0..self.len() {
+            let s = self.sample(i);
+            filter.update(
+                &ImuSample::new(v(s.gyr), v(s.acc), v(s.mag)),
+                T::from_f64(self.dt(i)),
+            );
+            each(filter);
+        }
     }
     /// Time step before sample `i`, s (the first sample uses the second interval).
     pub fn dt(&self, i: usize) -> f64 {

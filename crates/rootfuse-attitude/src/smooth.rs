@@ -52,7 +52,7 @@
 use crate::blocks::{LowPassGain, integrate_gyro, turn_in_earth};
 use crate::filters::Rejections;
 use crate::registry::FilterSpec;
-use crate::{ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
+use crate::{Dof, ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mask;
 use rootfuse_lane::Mat;
 use rootfuse_lane::wide::{f64x2, f64x4};
@@ -60,6 +60,7 @@ use std::vec::Vec;
 
 /// The smoothed estimates of a recording.
 #[derive(Clone, Debug)]
+#[non_exhaustive]
 pub struct Smoothed {
     /// Smoothed orientation per sample (sensor to earth, same convention as the filter).
     pub quat: Vec<Quat<f64>>,
@@ -136,24 +137,29 @@ pub fn smooth_spec(
     if !wanted {
         return forward_backward(rec, build, nine_d);
     }
-    let mut online = spec.build::<f32>();
-    let narrow = |v: Vec3<f64>| Vec3::<f32>::from_f64([v.x, v.y, v.z]);
-    for i in 0..rec.len() {
-        let s = rec.sample(i);
-        let sample = ImuSample::new(narrow(s.gyr), narrow(s.acc), narrow(s.mag));
-        online.update(&sample, rec.dt(i) as f32);
+    // Without a magnetometer the online run is 6D, whatever the spec's default: its scale
+    // estimate then holds the axes together as a 6D run does (`gyr_scale_axis_ridge`).
+    let mut online_spec = spec.clone();
+    if rec.mag.is_none() && online_spec.uses_magnetometer() {
+        online_spec.set_dof(Dof::Six).ok();
     }
+    let mut online = online_spec.build::<f32>();
+    rec.run(&mut online, |_| ());
     let s = online.gyro_scale();
     let scale = Vec3::new(f64::from(s.x), f64::from(s.y), f64::from(s.z));
-    let mut scaled = rec.clone();
-    for g in &mut scaled.gyr {
-        *g = Vec3::new(
-            g.x / (1.0 + scale.x),
-            g.y / (1.0 + scale.y),
-            g.z / (1.0 + scale.z),
-        );
-    }
-    let mut out = forward_backward(&scaled, build, nine_d)?;
+    let mut out = if scale == Vec3::zero() {
+        forward_backward(rec, build, nine_d)?
+    } else {
+        let mut scaled = rec.clone();
+        for g in &mut scaled.gyr {
+            *g = Vec3::new(
+                g.x / (1.0 + scale.x),
+                g.y / (1.0 + scale.y),
+                g.z / (1.0 + scale.z),
+            );
+        }
+        forward_backward(&scaled, build, nine_d)?
+    };
     out.gyro_scale = Some(scale);
     Ok(out)
 }
@@ -170,7 +176,9 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 /// in one loop. Each lane equals a scalar `f64` run of the same filter bit for bit (the
 /// [`Lane`] contract), so the result is that of two scalar passes, at about the cost of one.
 ///
-/// For the flagship, build the passes from [`SqrtEskfParams::for_smoothing`]
+/// The passes are what `build` makes: the flagship's `smoothing_gyro_scale` is read by
+/// [`smooth_spec`], not here. For the flagship, build the passes from
+/// [`SqrtEskfParams::for_smoothing`]
 /// (`FilterSpec::for_smoothing` in the registry; `rootfuse run --offline` and Python's
 /// `smooth` do): offline the accelerometer time constant is longer than online.
 ///

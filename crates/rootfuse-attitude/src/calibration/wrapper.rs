@@ -70,6 +70,12 @@ impl<T: Lane, F: OrientationFilter<T>> OrientationFilter<T> for MagCalibrated<T,
     fn bias(&self) -> Vec3<T> {
         self.inner.bias()
     }
+    fn gyro_scale(&self) -> Vec3<T> {
+        self.inner.gyro_scale()
+    }
+    fn smoothing_gyro_tau(&self) -> f64 {
+        self.inner.smoothing_gyro_tau()
+    }
     fn rejections(&self) -> &Rejections<T> {
         self.inner.rejections()
     }

@@ -27,16 +27,8 @@ impl<T: Lane> Coefficients<T> {
             heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
             gyr_scale_error: p.coef(|p| p.gyr_scale_error),
             gyr_scale_window: p.coef(|p| p.gyr_scale_window),
-            gyr_scale_ridge: p.coef(|p| p.gyr_scale_ridge),
-            // In 9D the field corrects the heading the axis about up would drift, so each
-            // axis is estimated on its own there.
-            gyr_scale_axis_ridge: p.coef(|p| {
-                if p.dof.uses_magnetometer() {
-                    p.gyr_scale_ridge
-                } else {
-                    p.gyr_scale_axis_ridge
-                }
-            }),
+            gyr_scale_axis_ridge: p.coef(|p| gyr_scale_prior(p).1),
+            gyr_scale_common: p.coef(|p| (p.gyr_scale_ridge - gyr_scale_prior(p).1) / 3.0),
             gyr_scale_gate2: p.coef(|p| p.gyr_scale_gate * p.gyr_scale_gate),
             acc_excess_scale: p.coef(|p| p.acc_excess_scale),
             acc_spike2: p.coef(|p| p.acc_spike * p.acc_spike),
@@ -90,3 +82,24 @@ impl<T: Lane> Coefficients<T> {
         s
     }
 }
+
+/// The scale estimate's prior on the axes' mean and on their differences from it, rad²:
+/// `(gyr_scale_ridge, gyr_scale_axis_ridge)`, the second equal to the first in 9D, where the
+/// field corrects the heading the axis about up would drift (each axis on its own), and at
+/// most `MAX_AXIS_RIDGE_RATIO` times it in 6D.
+fn gyr_scale_prior(p: &SqrtEskfParams) -> (f64, f64) {
+    let mean = p.gyr_scale_ridge;
+    if p.dof.uses_magnetometer() {
+        (mean, mean)
+    } else {
+        (
+            mean,
+            p.gyr_scale_axis_ridge.min(MAX_AXIS_RIDGE_RATIO * mean),
+        )
+    }
+}
+
+/// Largest ratio of the prior on the axes' differences to the prior on their mean: beyond it
+/// the mean's own prior, `λ_d + 3·(λ_c − λ_d)/3`, is lost to `f32`'s rounding of the matrix's
+/// entries (a ratio of 10⁴ leaves it 10⁻⁴ of them, a thousand times `f32`'s epsilon).
+const MAX_AXIS_RIDGE_RATIO: f64 = 1e4;

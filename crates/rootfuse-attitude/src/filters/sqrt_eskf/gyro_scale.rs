@@ -160,10 +160,9 @@ impl<T: Lane> GyroScale<T> {
         // The prior on `s`: `gyr_scale_ridge` on the axes' mean and `gyr_scale_axis_ridge` on
         // their differences from it, `λ_d·I + (λ_c − λ_d)/3·11ᵀ`.
         let mut regularised = self.normal;
-        let common = (coef.gyr_scale_ridge - coef.gyr_scale_axis_ridge) * T::from_f64(1.0 / 3.0);
         for k in 0..3 {
             for l in 0..3 {
-                regularised.m[k][l] += common;
+                regularised.m[k][l] += coef.gyr_scale_common;
             }
             regularised.m[k][k] += coef.gyr_scale_axis_ridge;
             regularised.m[k + 3][k + 3] += T::from_f64(BIAS_RIDGE);

@@ -159,8 +159,10 @@ params! {
         /// are divided by `1 + s` per axis from then on (`docs/methods.md`).
         gyr_scale_window: f64 = 10.0, "s", [0.0, 1e6];
         /// How firmly that estimate is held at zero: as if each axis had already turned
-        /// `√gyr_scale_ridge` rad with no scale error seen (an axis the motion never turns
-        /// about keeps zero; at least 1e-6, so that it cannot stop the others' estimate).
+        /// `√gyr_scale_ridge` rad with no scale error seen (in 9D an axis the motion never
+        /// turns about keeps zero; in 6D this holds the axes' mean, and such an axis takes
+        /// the mean, `gyr_scale_axis_ridge`; at least 1e-6, so that it cannot stop the
+        /// others' estimate).
         gyr_scale_ridge: f64 = 1.0, "rad²", [1e-6, 1e12];
         /// In 6D, how firmly the three axes' estimates are held to their mean: as if the
         /// axes had turned `√gyr_scale_axis_ridge` rad with no difference between their scale
@@ -168,7 +170,8 @@ params! {
         /// error turns only the heading, which nothing corrects in 6D; held to the mean, that
         /// axis takes the error the others show (BROAD's gyroscope errs alike on its axes;
         /// `docs/accuracy.md`). Equal to `gyr_scale_ridge`, each axis is estimated on its own,
-        /// as it always is in 9D, where the field corrects that heading.
+        /// as it always is in 9D, where the field corrects that heading. Taken as at most 10⁴
+        /// times `gyr_scale_ridge`: beyond, `f32` rounding would lose the mean's own prior.
         gyr_scale_axis_ridge: f64 = 30.0, "rad²", [1e-6, 1e12];
         /// A window whose accelerometer disagrees with the estimated up by `d` (rms, rad)
         /// weighs `1/(1 + (d/gyr_scale_gate)⁴)`: motion acceleration, not the scale, moves
@@ -208,7 +211,7 @@ params! {
         /// passes share one estimate; 0 leaves the readings as they are. The passes estimate
         /// none of their own: from opposite ends of the recording they would disagree while
         /// they learn it. It costs that pass (BROAD 14 smoothed: 9D 1.562° → 1.547°, 6D
-        /// 2.288° → 1.909°, inclination 0.528° → 0.522°; the time, docs/performance.md).
+        /// 2.288° → 1.910°, inclination 0.528° → 0.522°; the time, docs/performance.md).
         smoothing_gyro_scale: bool = 0.0, "1", [0.0, 1.0];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
@@ -514,8 +517,11 @@ lane_state! {
         heading_model_error_scale: T,
         gyr_scale_error: T,
         gyr_scale_window: T,
-        gyr_scale_ridge: T,
+        /// The scale estimate's prior on the axes' differences from their mean, rad²
+        /// (`gyr_scale_axis_ridge` in 6D, `gyr_scale_ridge` in 9D), and the part added to
+        /// every entry, `(gyr_scale_ridge − that)/3`: together `λ_d·I + (λ_c − λ_d)/3·11ᵀ`.
         gyr_scale_axis_ridge: T,
+        gyr_scale_common: T,
         /// `gyr_scale_gate²`, rad².
         gyr_scale_gate2: T,
         acc_excess_scale: T,
