@@ -27,13 +27,13 @@ macro_rules! lane_state {
     (
         $(#[$meta:meta])*
         $vis:vis struct $name:ident<T: Lane> {
-            $( $(#[$fmeta:meta])* $field:ident: $ty:ty, )*
+            $( $(#[$fmeta:meta])* $fvis:vis $field:ident: $ty:ty, )*
         }
     ) => {
         $(#[$meta])*
         #[derive(Clone, Copy, Debug)]
         $vis struct $name<T: Lane> {
-            $( $(#[$fmeta])* $field: $ty, )*
+            $( $(#[$fmeta])* $fvis $field: $ty, )*
         }
         impl<T: Lane> rootfuse_lane::Select<T::Mask> for $name<T> {
             #[inline]

@@ -1,7 +1,76 @@
 //! The flagship's parameters converted to its own precision, per lane, once at construction
-//! ([`Coefficients`](super::Coefficients)), and the covariance factor they start from.
+//! ([`Coefficients`]), and the covariance factor they start from.
 
 use super::*;
+
+lane_state! {
+    /// The parameters in the filter's precision, converted once at construction (per lane:
+    /// lanes may run with different parameters). Names follow [`SqrtEskfParams`]; `*_var` are
+    /// squared densities, `*2` squared thresholds.
+    pub(super) struct Coefficients<T: Lane> {
+        pub(super) gyr_noise: T,
+        pub(super) bias_walk: T,
+        pub(super) bias_noise_every: T,
+        pub(super) acc_update_every: T,
+        pub(super) mag_update_every: T,
+        pub(super) rest_update_every: T,
+        pub(super) tau_acc: T,
+        pub(super) tau_acc_long: T,
+        pub(super) window_ratio: T,
+        pub(super) acc_noise_rotation_share: T,
+        pub(super) window_tau: T,
+        pub(super) acc_var: T,
+        pub(super) acc_gate: T,
+        pub(super) acc_adapt_window: T,
+        pub(super) model_error_scale: T,
+        pub(super) model_error_rotation_scale: T,
+        pub(super) model_error_ratio: T,
+        pub(super) model_error_window: T,
+        pub(super) heading_model_error_scale: T,
+        pub(super) gyr_scale_error: T,
+        pub(super) gyr_scale_window: T,
+        /// The scale estimate's prior on the axes' differences from their mean, rad²
+        /// (`gyr_scale_axis_ridge` in 6D, `gyr_scale_ridge` in 9D), and the part added to
+        /// every entry, `(gyr_scale_ridge − that)/3`: together `λ_d·I + (λ_c − λ_d)/3·11ᵀ`.
+        pub(super) gyr_scale_axis_ridge: T,
+        pub(super) gyr_scale_common: T,
+        /// `gyr_scale_gate²`, rad².
+        pub(super) gyr_scale_gate2: T,
+        pub(super) acc_excess_scale: T,
+        /// `acc_spike²`, (m/s²)².
+        pub(super) acc_spike2: T,
+        pub(super) acc_reject_time: T,
+        /// `startup_time`, at least 1 µs (it divides).
+        pub(super) startup_time: T,
+        pub(super) reacquire_std: T,
+        pub(super) rest_tau: T,
+        pub(super) rest_gyr2: T,
+        pub(super) rest_acc2: T,
+        pub(super) rest_time: T,
+        pub(super) rest_var: T,
+        pub(super) init_bias_std: T,
+        pub(super) init_tilt_std: T,
+        pub(super) init_heading_std: T,
+        pub(super) bias_step_window: T,
+        /// `acc_noise²/(2·bias_step_window)·bias_step_gate²`: the squared norm of the running
+        /// innovation mean beyond which a bias step is declared (0: never).
+        pub(super) bias_step_threshold: T,
+        pub(super) heading_walk_var: T,
+        pub(super) heading_rate_var: T,
+        pub(super) heading_up_rate_var: T,
+        pub(super) mag_var: T,
+        pub(super) mag_norm_th: T,
+        pub(super) mag_dip_th: T,
+        pub(super) mag_ref_tau: T,
+        pub(super) mag_lowpass_tau: T,
+        pub(super) mag_settle_time: T,
+        pub(super) mag_azimuth_tau: T,
+        pub(super) adopted_field_error_scale: T,
+        pub(super) mag_new_time: T,
+        pub(super) mag_reject_time: T,
+        pub(super) mag_home_time: T,
+    }
+}
 
 impl<T: Lane> Coefficients<T> {
     pub(super) fn new(p: &LaneParams<'_, SqrtEskfParams, T>) -> Self {

@@ -34,6 +34,7 @@ mod per_dt;
 mod for_smoothing;
 // The gyroscope's scale factors, estimated online.
 mod gyro_scale;
+use coefficients::Coefficients;
 use gyro_scale::GyroScale;
 use per_dt::{Cached, PerDt, PerHeading, PerInterval, divisor};
 
@@ -488,75 +489,6 @@ lane_state! {
         /// (`set_quat` with a `sigma`): the first sample keeps it.
         preset_covariance: T::Mask,
         mag_disturbed: T::Mask,
-    }
-}
-
-lane_state! {
-    /// The parameters in the filter's precision, converted once at construction (per lane:
-    /// lanes may run with different parameters). Names follow [`SqrtEskfParams`]; `*_var` are
-    /// squared densities, `*2` squared thresholds.
-    struct Coefficients<T: Lane> {
-        gyr_noise: T,
-        bias_walk: T,
-        bias_noise_every: T,
-        acc_update_every: T,
-        mag_update_every: T,
-        rest_update_every: T,
-        tau_acc: T,
-        tau_acc_long: T,
-        window_ratio: T,
-        acc_noise_rotation_share: T,
-        window_tau: T,
-        acc_var: T,
-        acc_gate: T,
-        acc_adapt_window: T,
-        model_error_scale: T,
-        model_error_rotation_scale: T,
-        model_error_ratio: T,
-        model_error_window: T,
-        heading_model_error_scale: T,
-        gyr_scale_error: T,
-        gyr_scale_window: T,
-        /// The scale estimate's prior on the axes' differences from their mean, rad²
-        /// (`gyr_scale_axis_ridge` in 6D, `gyr_scale_ridge` in 9D), and the part added to
-        /// every entry, `(gyr_scale_ridge − that)/3`: together `λ_d·I + (λ_c − λ_d)/3·11ᵀ`.
-        gyr_scale_axis_ridge: T,
-        gyr_scale_common: T,
-        /// `gyr_scale_gate²`, rad².
-        gyr_scale_gate2: T,
-        acc_excess_scale: T,
-        /// `acc_spike²`, (m/s²)².
-        acc_spike2: T,
-        acc_reject_time: T,
-        /// `startup_time`, at least 1 µs (it divides).
-        startup_time: T,
-        reacquire_std: T,
-        rest_tau: T,
-        rest_gyr2: T,
-        rest_acc2: T,
-        rest_time: T,
-        rest_var: T,
-        init_bias_std: T,
-        init_tilt_std: T,
-        init_heading_std: T,
-        bias_step_window: T,
-        /// `acc_noise²/(2·bias_step_window)·bias_step_gate²`: the squared norm of the running
-        /// innovation mean beyond which a bias step is declared (0: never).
-        bias_step_threshold: T,
-        heading_walk_var: T,
-        heading_rate_var: T,
-        heading_up_rate_var: T,
-        mag_var: T,
-        mag_norm_th: T,
-        mag_dip_th: T,
-        mag_ref_tau: T,
-        mag_lowpass_tau: T,
-        mag_settle_time: T,
-        mag_azimuth_tau: T,
-        adopted_field_error_scale: T,
-        mag_new_time: T,
-        mag_reject_time: T,
-        mag_home_time: T,
     }
 }
 
