@@ -206,7 +206,7 @@ params! {
         /// constant ([`OrientationFilter::smoothing_gyro_tau`](crate::OrientationFilter);
         /// 0 keeps it), so motion acceleration the passes let through above `1/(2π·τ)` goes.
         smoothing_gyro_tau: f64 = 1.7, "s", [0.0, 1e3];
-        /// Offline only: 1 makes the smoother ([`crate::smooth::smooth_spec`]) first run
+        /// Offline only: 1 makes the smoother (`smooth::smooth_spec`, with `std`) first run
         /// the filter forward once, online (`f32`), and divide the gyroscope's readings by the
         /// scale error it estimated over the whole recording (`gyr_scale_window`), so that both
         /// passes share one estimate; 0 leaves the readings as they are. The passes estimate
