@@ -221,6 +221,10 @@ pub struct FinalState {
     pub quat: Quat<f64>,
     /// Gyro-bias estimate, rad/s (zero for filters without one).
     pub bias: Vec3<f64>,
+    /// Gyroscope scale-error estimate per sensor axis, a fraction `s` in
+    /// `ω_measured = (1 + s)·ω` (the flagship's `gyr_scale_window`; zero for filters without
+    /// one): a fleet's per-device calibration.
+    pub gyro_scale: Vec3<f64>,
     /// What the filter skipped over the whole channel, by reason.
     pub rejections: RejectionTotals,
 }
@@ -269,6 +273,7 @@ impl<L: Lane, S: ChannelSource> FilterVisitor<L> for FinalStates<'_, S> {
             .map(|c| FinalState {
                 quat: batch.quat(c),
                 bias: batch.bias(c),
+                gyro_scale: batch.gyro_scale(c),
                 rejections: batch.rejections(c),
             })
             .collect())

@@ -287,9 +287,14 @@ fn final_states<'py>(
         .iter()
         .flat_map(|s| [s.bias.x, s.bias.y, s.bias.z])
         .collect();
+    let s: Vec<f64> = states
+        .iter()
+        .flat_map(|s| [s.gyro_scale.x, s.gyro_scale.y, s.gyro_scale.z])
+        .collect();
     let out = PyDict::new(py);
     out.set_item("quat", PyArray1::from_vec(py, q).reshape([count, 4])?)?;
     out.set_item("bias", PyArray1::from_vec(py, b).reshape([count, 3])?)?;
+    out.set_item("gyro_scale", PyArray1::from_vec(py, s).reshape([count, 3])?)?;
     let dicts = RejectionDicts::new(py)?;
     let rej = PyList::empty(py);
     for s in &states {
@@ -324,7 +329,8 @@ fn final_states<'py>(
 /// half the memory, and writing them is most of a series run's cost beyond the filters
 /// (`docs/performance.md`); with `precision="f32"` their values are the float64 ones exactly,
 /// with `"f64"` rounded. With `series=False` only the final state: `{"quat": (C, 4),
-/// "bias": (C, 3), "rejections": [...]}`.
+/// "bias": (C, 3), "gyro_scale": (C, 3), "rejections": [...]}` (`gyro_scale`: each channel's
+/// estimated scale error per sensor axis, a fraction, zeros for filters without one).
 ///
 /// `out`: for `(C, N, 3)` input, a dict of arrays to write the series into instead of new
 /// ones (the keys and shapes of the result, one float type, C-contiguous and writeable; their

@@ -97,6 +97,7 @@ class _ManyFinal(TypedDict):
 
     quat: _F64
     bias: _F64
+    gyro_scale: _F64
     rejections: List[_Rejections]
 
 class _Smoothed(TypedDict):
