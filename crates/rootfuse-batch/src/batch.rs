@@ -421,12 +421,6 @@ impl<L: Lane, F: OrientationFilter<L>> Chunk<L, F> {
         vec_f64(self.filter.bias().lane(lane))
     }
 
-    /// Gyroscope scale-error estimate of lane `lane` per sensor axis (a fraction,
-    /// [`OrientationFilter::gyro_scale`]), in `f64`.
-    pub fn gyro_scale(&self, lane: usize) -> Vec3<f64> {
-        vec_f64(self.filter.gyro_scale().lane(lane))
-    }
-
     /// Rejection counters of lane `lane`, masked steps excluded.
     pub fn rejections(&self, lane: usize) -> RejectionTotals {
         let mut totals = RejectionTotals::of_lane(self.filter.rejections(), lane);
@@ -741,7 +735,8 @@ impl<L: Lane, F: OrientationFilter<L> + Send> Batch<L, F> {
     pub fn gyro_scale(&self, c: usize) -> Vec3<f64> {
         assert!(c < self.channels, "channel {c} out of range");
         let s = self.slot(c);
-        self.chunks[s / L::LANES].gyro_scale(s % L::LANES)
+        let chunk = &self.chunks[s / L::LANES];
+        vec_f64(chunk.filter.gyro_scale().lane(s % L::LANES))
     }
 
     /// Rejection counters of channel `c` (panics if `c >= channels()`).
