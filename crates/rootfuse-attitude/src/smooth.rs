@@ -147,19 +147,16 @@ pub fn smooth_spec(
     rec.run(&mut online, |_| ());
     let s = online.gyro_scale();
     let scale = Vec3::new(f64::from(s.x), f64::from(s.y), f64::from(s.z));
-    let mut out = if scale == Vec3::zero() {
-        forward_backward(rec, build, nine_d)?
-    } else {
-        let mut scaled = rec.clone();
-        for g in &mut scaled.gyr {
-            *g = Vec3::new(
-                g.x / (1.0 + scale.x),
-                g.y / (1.0 + scale.y),
-                g.z / (1.0 + scale.z),
-            );
-        }
-        forward_backward(&scaled, build, nine_d)?
-    };
+    // Dividing by exactly 1 where nothing was estimated keeps those readings' bits.
+    let mut scaled = rec.clone();
+    for g in &mut scaled.gyr {
+        *g = Vec3::new(
+            g.x / (1.0 + scale.x),
+            g.y / (1.0 + scale.y),
+            g.z / (1.0 + scale.z),
+        );
+    }
+    let mut out = forward_backward(&scaled, build, nine_d)?;
     out.gyro_scale = Some(scale);
     Ok(out)
 }
