@@ -97,7 +97,8 @@ impl std::error::Error for SmoothError {}
 /// [`forward_backward`] for a filter of the registry, as `rootfuse run --offline` and
 /// Python's `smooth` run it: both passes built from [`FilterSpec::for_smoothing`], in two
 /// `f64` lanes. Where the spec asks for it (`smoothing_gyro_scale = 1`, the flagship with
-/// its scale estimate on), the filter first runs forward once, online in `f32`, and both
+/// its scale estimate on, the default), the filter first runs forward once, online in `f32`
+/// at half the recording's rate (each pair of samples one), and both
 /// passes take the gyroscope's readings divided by `1 + s` per axis, `s` the scale error it
 /// estimated ([`OrientationFilter::gyro_scale`] at the end; [`Smoothed::gyro_scale`]).
 /// `nine_d` as in [`forward_backward`].
@@ -116,11 +117,13 @@ impl std::error::Error for SmoothError {}
 ///     ..Default::default()
 /// };
 /// let mut spec = FilterSpec::new("flagship").unwrap();
-/// spec.set("smoothing_gyro_scale=1").unwrap();
 /// let out = smooth_spec(&rec, &spec, true).unwrap();
 /// assert_eq!(out.quat.len(), n);
 /// // One second at rest: no window closed, no scale estimated.
 /// assert_eq!(out.gyro_scale, Some(Vec3::zero()));
+/// // Without the online pass, no scale is reported.
+/// spec.set("smoothing_gyro_scale=0").unwrap();
+/// assert_eq!(smooth_spec(&rec, &spec, true).unwrap().gyro_scale, None);
 /// ```
 ///
 /// # Errors
@@ -144,7 +147,7 @@ pub fn smooth_spec(
         online_spec.set_dof(Dof::Six).ok();
     }
     let mut online = online_spec.build::<f32>();
-    rec.run(&mut online, |_| ());
+    pairs_for_scale(rec).run(&mut online, |_| ());
     let s = online.gyro_scale();
     let scale = Vec3::new(f64::from(s.x), f64::from(s.y), f64::from(s.z));
     // Dividing by exactly 1 where nothing was estimated keeps those readings' bits.
@@ -159,6 +162,32 @@ pub fn smooth_spec(
     let mut out = forward_backward(&scaled, build, nine_d)?;
     out.gyro_scale = Some(scale);
     Ok(out)
+}
+
+/// The readings of `rec` at half its rate: each pair of samples `(2i, 2i + 1)` becomes one,
+/// stamped at the pair's second time, with the mean of the pair's angular rates (over the
+/// pair's two steps, their rotation to first order) and the pair's second accelerometer and
+/// magnetometer readings (a lone last sample is left out). The second reading, not the mean:
+/// a mean lags the orientation at the stamp by half a step, and under rotation that lag
+/// grows with the rate as a scale error does (simulated, 0.4 % on an axis: the mean found
+/// 0.1 % more than the full rate, the second reading within 0.01 %). The scale estimate then
+/// equals the full rate's to within its noise (BROAD 14 smoothed with either: 9D 1.547°,
+/// 6D 1.911° / 1.910°), at half the cost of the online pass. A pair with a reading that is
+/// not finite is not finite, and the online pass skips it as it would that sample.
+fn pairs_for_scale(rec: &Recording) -> Recording {
+    let pairs = rec.len() / 2;
+    let second = |v: &[Vec3<f64>]| -> Vec<Vec3<f64>> { (0..pairs).map(|i| v[2 * i + 1]).collect() };
+    Recording {
+        name: rec.name.clone(),
+        t: (0..pairs).map(|i| rec.t[2 * i + 1]).collect(),
+        gyr: (0..pairs)
+            .map(|i| (rec.gyr[2 * i] + rec.gyr[2 * i + 1]) * 0.5)
+            .collect(),
+        acc: second(&rec.acc),
+        mag: rec.mag.as_deref().map(second),
+        truth: None,
+        use_mask: None,
+    }
 }
 
 /// One pass: estimate and attitude covariance after each sample.

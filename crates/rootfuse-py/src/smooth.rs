@@ -14,9 +14,10 @@ use pyo3::types::PyDict;
 /// gyr, acc, mag (or None): `(N, 3)`; `t` sample times, s `(N,)` (or `dt`, a fixed step:
 /// times `k·dt`; the smoother reads steps as differences of times, like `rootfuse run
 /// --offline`). Returns `{"quat": (N, 4), "forward_only": int}`: `forward_only` counts the
-/// samples where fusion was impossible and the forward estimate was kept; with
-/// `smoothing_gyro_scale=1` (flagship) also `"gyro_scale"` `(3,)`, the scale error per axis
-/// (a fraction) an online run estimated and both passes' readings were divided by.
+/// samples where fusion was impossible and the forward estimate was kept; for the flagship
+/// (`smoothing_gyro_scale=1`, the default) also `"gyro_scale"` `(3,)`, the scale error per
+/// axis (a fraction) an online run at half the rate estimated and both passes' readings were
+/// divided by (`smoothing_gyro_scale=0` skips that run).
 #[pyfunction]
 #[pyo3(signature = (name, gyr, acc, mag=None, *, t=None, dt=None, dof=None, **params))]
 #[allow(clippy::too_many_arguments)]

@@ -374,16 +374,24 @@ def test_gyro_scale_follows_the_readings_scale():
     np.testing.assert_array_equal(f.gyro_scale, np.zeros(3))
 
 
-def test_smooth_shares_the_online_scale_estimate_on_request():
-    # smoothing_gyro_scale=1: the smoother first runs the flagship online in float32 and
-    # reports (and divides both passes' readings by) the scale error that run ends with.
+def test_smooth_shares_the_online_scale_estimate():
+    # By default (smoothing_gyro_scale=1) the smoother first runs the flagship online in
+    # float32 at half the rate (each pair of samples one: the mean angular rate, the second
+    # accelerometer reading), and reports (and divides both passes' readings by) the scale
+    # error that run ends with; 0 skips that run.
     r = rf.simulate("fast-rotation", seed=1, duration_s=60.0)
-    plain = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6)
+    plain = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6, smoothing_gyro_scale=0)
     assert "gyro_scale" not in plain
-    shared = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6, smoothing_gyro_scale=1)
+    shared = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6)
+    n = len(r["t"]) // 2 * 2
+    pairs = lambda x: x[:n].reshape(n // 2, 2, 3).mean(axis=1)
     f = rf.Filter("flagship", dof=6, precision="f32")
-    f.update_batch(r["gyr"], r["acc"], None, t=r["t"])
+    f.update_batch(pairs(r["gyr"]), r["acc"][1:n:2], None, t=r["t"][1:n:2])
     np.testing.assert_array_equal(shared["gyro_scale"], f.gyro_scale)
+    # At the full rate the estimate is the same to within its noise.
+    full = rf.Filter("flagship", dof=6, precision="f32")
+    full.update_batch(r["gyr"], r["acc"], None, t=r["t"])
+    np.testing.assert_allclose(shared["gyro_scale"], full.gyro_scale, atol=2e-4)
     assert np.any(f.gyro_scale != 0)
     assert not np.array_equal(shared["quat"], plain["quat"])
 

@@ -207,8 +207,8 @@ def smooth(
     **params: float,
 ) -> _Smoothed:
     """Offline forward-backward smoothing (f64) for filters with an attitude covariance:
-    ``{"quat": (N, 4), "forward_only": int}``, and ``"gyro_scale"`` (3,) with
-    ``smoothing_gyro_scale=1`` (flagship)."""
+    ``{"quat": (N, 4), "forward_only": int}``, and for the flagship ``"gyro_scale"`` (3,),
+    unless ``smoothing_gyro_scale=0``."""
 
 @overload
 def run_many(

@@ -207,13 +207,14 @@ params! {
         /// 0 keeps it), so motion acceleration the passes let through above `1/(2π·τ)` goes.
         smoothing_gyro_tau: f64 = 1.7, "s", [0.0, 1e3];
         /// Offline only: 1 makes the smoother (`smooth::smooth_spec`, with `std`) first run
-        /// the filter forward once, online (`f32`), and divide the gyroscope's readings by the
-        /// scale error it estimated over the whole recording (`gyr_scale_window`), so that both
-        /// passes share one estimate; 0 leaves the readings as they are. The passes estimate
-        /// none of their own: from opposite ends of the recording they would disagree while
-        /// they learn it. It costs that pass (BROAD 14 smoothed: 9D 1.562° → 1.547°, 6D
-        /// 2.288° → 1.910°, inclination 0.528° → 0.522°; the time, docs/performance.md).
-        smoothing_gyro_scale: bool = 0.0, "1", [0.0, 1.0];
+        /// the filter forward once, online (`f32`, at half the recording's rate), and divide
+        /// the gyroscope's readings by the scale error it estimated over the whole recording
+        /// (`gyr_scale_window`), so that both passes share one estimate; 0 leaves the
+        /// readings as they are. The passes estimate none of their own: from opposite ends of
+        /// the recording they would disagree while they learn it. It costs that pass, about a
+        /// fifth of the smoother's time (BROAD 14 smoothed, 0 → 1: 9D 1.562° → 1.547°, 6D
+        /// 2.288° → 1.902°, inclination 0.528° → 0.524°; the time, docs/performance.md).
+        smoothing_gyro_scale: bool = 1.0, "1", [0.0, 1.0];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
         /// body made (its velocity change in one sample would be absurd): it is gated (counted
