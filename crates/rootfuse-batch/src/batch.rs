@@ -163,29 +163,39 @@ pub fn fill_lanes<T: Copy + Into<f64>, L: Lane>(
     }
     let cast = |x: T| <L::Scalar as Lane>::from_f64(x.into());
     let whole = tile.len() / n * n;
+    // Each channel's 3·n values of a block in the lane's precision: converted in one simple
+    // loop per channel (vectorised), so that the loads, transposes and stores below are
+    // the same code whatever the input's float type. Converting inside the vector loads
+    // left that code too large to unroll: 16 instructions per value from `f64`, 5 from `f32`.
+    let mut converted = [[<L::Scalar as Lane>::zero(); 3 * MAX_LANES]; MAX_LANES];
     let mut block = [L::zero(); MAX_LANES];
     let block = &mut block[..n];
     for b0 in (0..whole).step_by(n) {
-        // The block's 3·n values of a channel, as three vectors: values c·n .. (c + 1)·n.
-        for c in 0..3 {
-            let first = 3 * (start + b0) + c * n;
-            #[cfg(target_arch = "x86_64")]
-            for r in rows {
-                let slice = core::mem::size_of::<T>() * first;
-                let ahead = r.as_ptr().cast::<i8>().wrapping_add(slice + PREFETCH_BYTES);
-                for line in (0..n * core::mem::size_of::<T>()).step_by(64) {
-                    // SAFETY: a prefetch is a hint: it reads nothing and never faults.
-                    #[allow(unused_unsafe)]
-                    unsafe {
-                        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
-                            ahead.wrapping_add(line),
-                        );
-                    }
+        let first = 3 * (start + b0);
+        #[cfg(target_arch = "x86_64")]
+        for r in rows {
+            let slice = core::mem::size_of::<T>() * first;
+            let ahead = r.as_ptr().cast::<i8>().wrapping_add(slice + PREFETCH_BYTES);
+            for line in (0..3 * n * core::mem::size_of::<T>()).step_by(64) {
+                // SAFETY: a prefetch is a hint: it reads nothing and never faults.
+                #[allow(unused_unsafe)]
+                unsafe {
+                    core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
+                        ahead.wrapping_add(line),
+                    );
                 }
             }
-            for (v, r) in block.iter_mut().zip(rows) {
-                let r = &r[first..first + n];
-                *v = L::from_fn(|k| cast(r[k]));
+        }
+        for (values, r) in converted.iter_mut().zip(rows) {
+            for (v, x) in values[..3 * n].iter_mut().zip(&r[first..first + 3 * n]) {
+                *v = cast(*x);
+            }
+        }
+        // Group `c`: the block's values c·n .. (c + 1)·n of every channel.
+        for c in 0..3 {
+            for (v, values) in block.iter_mut().zip(&converted) {
+                let values = &values[c * n..(c + 1) * n];
+                *v = L::from_fn(|k| values[k]);
             }
             // `block` holds `LANES` vectors, so this cannot refuse; if it did, the first
             // block returns before anything is written.
