@@ -488,6 +488,35 @@ pub enum Steps {
     Times(Vec<f64>),
 }
 
+/// A channel's sampling as [`Steps`] says it, over values borrowed from it or from a NumPy
+/// array (`run_many`'s `(C, N)` `t` or `dt`, each channel a row: nothing copied).
+#[derive(Clone, Copy, Debug)]
+pub enum StepsRef<'a> {
+    /// The same step before every sample, s.
+    Fixed(f64),
+    /// The step before each sample, s.
+    PerSample(&'a [f64]),
+    /// Sample times, s (the steps as in [`Steps::Times`]).
+    Times(&'a [f64]),
+}
+
+impl StepsRef<'_> {
+    /// The step before sample `i`, s (non-finite or non-positive steps are passed on: the
+    /// filter skips such a sample and flags it).
+    #[inline]
+    pub fn at(&self, i: usize) -> f64 {
+        match *self {
+            Self::Fixed(dt) => dt,
+            Self::PerSample(v) => v[i],
+            Self::Times(t) => match i {
+                _ if t.len() < 2 => 0.0,
+                0 => t[1] - t[0],
+                _ => t[i] - t[i - 1],
+            },
+        }
+    }
+}
+
 impl Steps {
     /// Reads `dt` / `t` (exactly one must be given) for `n` samples.
     pub fn parse(
@@ -530,18 +559,12 @@ impl Steps {
         }
     }
 
-    /// The step before sample `i`, s (non-finite or non-positive steps are passed on: the
-    /// filter skips such a sample and flags it).
-    #[inline]
-    pub fn at(&self, i: usize) -> f64 {
+    /// The same steps, borrowed.
+    pub fn borrowed(&self) -> StepsRef<'_> {
         match self {
-            Self::Fixed(dt) => *dt,
-            Self::PerSample(v) => v[i],
-            Self::Times(t) => match i {
-                _ if t.len() < 2 => 0.0,
-                0 => t[1] - t[0],
-                _ => t[i] - t[i - 1],
-            },
+            Self::Fixed(dt) => StepsRef::Fixed(*dt),
+            Self::PerSample(v) => StepsRef::PerSample(v),
+            Self::Times(t) => StepsRef::Times(t),
         }
     }
 

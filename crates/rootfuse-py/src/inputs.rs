@@ -2,7 +2,7 @@
 //! sample by sample for `Filter`, tile by tile (lane by lane, or a full chunk through
 //! registers) for the batch engine.
 
-use crate::arrays::{self, Steps};
+use crate::arrays::{self, Steps, StepsRef};
 use rootfuse_attitude::{ImuSample, Lane, Vec3};
 
 /// The per-sample input of one channel over borrowed sensor values (`[x, y, z]` rows, float32
@@ -11,7 +11,7 @@ pub struct Inputs<'a> {
     pub gyr: arrays::Floats<'a>,
     pub acc: arrays::Floats<'a>,
     pub mag: Option<arrays::Floats<'a>>,
-    pub steps: &'a Steps,
+    pub steps: StepsRef<'a>,
     pub len: usize,
 }
 
@@ -28,7 +28,7 @@ impl<'a> Inputs<'a> {
             gyr: gyr.floats(),
             acc: acc.floats(),
             mag: mag.map(|m| m.floats()),
-            steps,
+            steps: steps.borrowed(),
             len,
         }
     }
@@ -147,8 +147,8 @@ impl Inputs<'_> {
     /// equality of bits).
     fn fill_steps_lane<L: Lane>(&self, start: usize, lane: usize, tile: &mut [(ImuSample<L>, L)]) {
         match self.steps {
-            Steps::Fixed(dt) => {
-                let dt = <L::Scalar as Lane>::from_f64(*dt);
+            StepsRef::Fixed(dt) => {
+                let dt = <L::Scalar as Lane>::from_f64(dt);
                 if tile.first().is_some_and(|(_, d)| d.extract(lane) == dt) {
                     return;
                 }
@@ -156,12 +156,26 @@ impl Inputs<'_> {
                     d.set_lane(lane, dt);
                 }
             }
-            _ => {
-                for (k, (_, d)) in tile.iter_mut().enumerate() {
-                    d.set_lane(
-                        lane,
-                        <L::Scalar as Lane>::from_f64(self.steps.at(start + k)),
-                    );
+            // The steps of the tile's samples from the slices themselves (what `StepsRef::at`
+            // gives one by one, without its match and index tests per value). A tile past the
+            // channel's end is empty.
+            StepsRef::PerSample(v) => {
+                for ((_, d), &dt) in tile.iter_mut().zip(v.get(start..).unwrap_or_default()) {
+                    d.set_lane(lane, <L::Scalar as Lane>::from_f64(dt));
+                }
+            }
+            StepsRef::Times(t) => {
+                let mut rest = &mut tile[..];
+                if start == 0 && !rest.is_empty() {
+                    rest[0]
+                        .1
+                        .set_lane(lane, <L::Scalar as Lane>::from_f64(self.steps.at(0)));
+                    rest = &mut rest[1..];
+                }
+                let from = start.max(1) - 1;
+                let pairs = t.get(from..).unwrap_or_default().windows(2);
+                for ((_, d), w) in rest.iter_mut().zip(pairs) {
+                    d.set_lane(lane, <L::Scalar as Lane>::from_f64(w[1] - w[0]));
                 }
             }
         }

@@ -7,7 +7,7 @@
 //! ([`EstimateSink`](rootfuse_batch::EstimateSink)).
 
 use crate::arrays::{
-    DofArg, Floats, SensorArray, Steps, float_array, is_bool, positive, sensor_array,
+    DofArg, Floats, SensorArray, Steps, StepsRef, float_array, is_bool, positive, sensor_array,
     sensor_array_copied, type_name, vector,
 };
 use crate::filter::{RejectionDicts, spec_from};
@@ -158,13 +158,41 @@ fn check_lens(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
     Ok(())
 }
 
+/// Each channel's steps: one [`Steps`] per channel, or the rows of one `(C, N)` array of
+/// steps or times, borrowed from NumPy where it is float64 in C order (not copied per channel).
+enum ChannelSteps<'py> {
+    Each(Vec<Steps>),
+    Rows {
+        array: crate::arrays::FloatArray<'py>,
+        n: usize,
+        times: bool,
+    },
+}
+
+impl ChannelSteps<'_> {
+    /// Channel `c`'s steps.
+    fn channel(&self, c: usize) -> StepsRef<'_> {
+        match self {
+            Self::Each(steps) => steps[c].borrowed(),
+            Self::Rows { array, n, times } => {
+                let row = &array.as_slice()[c * n..(c + 1) * n];
+                if *times {
+                    StepsRef::Times(row)
+                } else {
+                    StepsRef::PerSample(row)
+                }
+            }
+        }
+    }
+}
+
 /// Per-channel steps from `dt` (a number; a `(C, N)` array; a list of `(N_i,)` arrays) or `t`
 /// (the same shapes, sample times).
-fn channel_steps(
-    dt: Option<&Bound<'_, PyAny>>,
-    t: Option<&Bound<'_, PyAny>>,
+fn channel_steps<'py>(
+    dt: Option<&Bound<'py, PyAny>>,
+    t: Option<&Bound<'py, PyAny>>,
     lens: &[usize],
-) -> PyResult<Vec<Steps>> {
+) -> PyResult<ChannelSteps<'py>> {
     let (obj, name, times) = match (dt, t) {
         (Some(_), Some(_)) => {
             return Err(PyValueError::new_err(
@@ -198,7 +226,7 @@ fn channel_steps(
             .extract()
             .map_err(|_| PyTypeError::new_err(format!("{EXPECTED}, got {}", type_name(obj))))?;
         let x = positive(x, "dt")?;
-        return Ok(vec![Steps::Fixed(x); lens.len()]);
+        return Ok(ChannelSteps::Each(vec![Steps::Fixed(x); lens.len()]));
     }
     if is_sequence(obj) {
         let mut out = Vec::new();
@@ -209,17 +237,14 @@ fn channel_steps(
             out.push(make(v));
         }
         check_lens(name, &got, lens)?;
-        return Ok(out);
+        return Ok(ChannelSteps::Each(out));
     }
     let a = float_array(obj, name)?;
     let shape = a.shape.clone();
     match *shape.as_slice() {
         [c, n] => {
             check_lens(name, &vec![n; c], lens)?;
-            let data = a.as_slice();
-            Ok((0..c)
-                .map(|k| make(data[k * n..(k + 1) * n].to_vec()))
-                .collect())
+            Ok(ChannelSteps::Rows { array: a, n, times })
         }
         _ => Err(PyValueError::new_err(format!(
             "{name}: expected shape (C, N) or a list of (N_i,) arrays, got shape {shape:?}"
@@ -398,7 +423,7 @@ pub fn run_many<'py>(
             gyr: g.channel(c),
             acc: a.channel(c),
             mag: m.as_ref().map(|m| m.channel(c)),
-            steps: &steps[c],
+            steps: steps.channel(c),
             len: g.lens[c],
         })
         .collect();
