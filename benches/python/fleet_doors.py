@@ -94,9 +94,10 @@ def numpy_rows(args, rows):
             mag = arrs[2] if dof == 9 else None
             fns[f"final {dtype}"] = lambda arrs=arrs, mag=mag: rf.run_many(
                 filt, arrs[0], arrs[1], mag, dt, dof=dof, precision="f32", series=False)
-            # The same channels with their sample times, a (C, N) array, instead of one step.
-            fns[f"times {dtype}"] = lambda arrs=arrs, mag=mag: rf.run_many(
-                filt, arrs[0], arrs[1], mag, t=times, dof=dof, precision="f32", series=False)
+            if dtype == "float32":
+                # The same channels with their sample times, a (C, N) array, not one step.
+                fns["times float32"] = lambda arrs=arrs, mag=mag: rf.run_many(
+                    filt, arrs[0], arrs[1], mag, t=times, dof=dof, precision="f32", series=False)
             fns[f"series {dtype}"] = lambda arrs=arrs, mag=mag: rf.run_many(
                 filt, arrs[0], arrs[1], mag, dt, dof=dof, precision="f32", series=True,
                 bias=False, flags=False)

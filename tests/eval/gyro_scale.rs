@@ -73,9 +73,10 @@ fn finds_a_simulated_scale_error_and_the_inclination_gains() {
 /// The smoother (`smoothing_gyro_scale = 1`, the default) divides both passes' readings by
 /// the scale an online `f32` run at half the rate estimated (each pair of samples one: the
 /// mean angular rate, the second accelerometer reading; reported in `Smoothed::gyro_scale`,
-/// the same bits as that run's, and within 0.02 % of the full rate's), and on the simulated scale error of [`SCALE`] its 6D total error gains over
-/// the passes on the raw readings (`smoothing_gyro_scale = 0`) by more than half (measured,
-/// seeds 0–2: 4.45° → 1.32°, 1.69° → 0.69°, 4.01° → 1.14°).
+/// the same bits as that run's, and within 0.02 % of the full rate's), and on the simulated
+/// scale error of [`SCALE`] its 6D total error gains over the passes on the raw readings
+/// (`smoothing_gyro_scale = 0`) by more than half (measured, seeds 0–2: 4.45° → 1.30°,
+/// 1.69° → 0.69°, 4.01° → 1.15°).
 #[test]
 fn the_smoother_shares_one_scale_estimate_between_its_passes() {
     use rootfuse_attitude::registry::FilterSpec;

@@ -146,6 +146,13 @@ pub fn smooth_spec(
     if rec.mag.is_none() && online_spec.uses_magnetometer() {
         online_spec.set_dof(Dof::Six).ok();
     }
+    // A pair of samples spans two steps: twice the longest step the spec accepts, so that the
+    // pass skips what the full rate would (a limit beyond the parameter's range keeps it).
+    if let Some(max_dt) = spec.get("max_dt") {
+        online_spec
+            .set(&std::format!("max_dt={}", 2.0 * max_dt))
+            .ok();
+    }
     let mut online = online_spec.build::<f32>();
     pairs_for_scale(rec).run(&mut online, |_| ());
     let s = online.gyro_scale();

@@ -1,8 +1,7 @@
 //! [`FleetRunner`]: a fleet of devices streamed through the batch engine in blocks of rows.
 
-use crate::batch::{
-    Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch, read_each_lane,
-};
+use crate::MAX_LANES;
+use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch, read_each_lane};
 use crate::recordings::{Columns, Estimate, Precision};
 use rayon::prelude::*;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};

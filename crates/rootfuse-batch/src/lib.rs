@@ -142,6 +142,7 @@
 #![warn(missing_docs)]
 
 mod batch;
+mod fill_lanes;
 mod fleet;
 mod recordings;
 #[cfg(feature = "throughput")]
@@ -151,9 +152,10 @@ mod throughput;
 pub use rayon;
 
 pub use batch::{
-    Batch, Channel, ChannelSource, Chunk, MAX_LANES, PAD_DT, RejectionTotals, SpecMismatch,
-    TILE_BYTES, TILE_STEPS, fill_lanes, pad_sample, set_sample_lane, tile_steps,
+    Batch, Channel, ChannelSource, Chunk, PAD_DT, RejectionTotals, SpecMismatch, TILE_BYTES,
+    TILE_STEPS, pad_sample, set_sample_lane, tile_steps,
 };
+pub use fill_lanes::{MAX_LANES, fill_lanes};
 pub use fleet::{
     BlockEstimates, FleetBlock, FleetError, FleetRunner, OnError, samples_with_missing_imu,
 };

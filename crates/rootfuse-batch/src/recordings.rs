@@ -1,6 +1,7 @@
 //! [`run_recordings`]: whole recordings as channels, what the CLI calls.
 
-use crate::batch::{Batch, ChannelSource, MAX_LANES, RejectionTotals, SpecMismatch};
+use crate::MAX_LANES;
+use crate::batch::{Batch, ChannelSource, RejectionTotals, SpecMismatch};
 use rayon::prelude::*;
 use rootfuse_attitude::filters::SampleFlags;
 use rootfuse_attitude::registry::{FilterSpec, FilterVisitor, RegisteredFilter};

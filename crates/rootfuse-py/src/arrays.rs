@@ -489,7 +489,8 @@ pub enum Steps {
 }
 
 /// A channel's sampling as [`Steps`] says it, over values borrowed from it or from a NumPy
-/// array (`run_many`'s `(C, N)` `t` or `dt`, each channel a row: nothing copied).
+/// array (`run_many`'s `(C, N)` `t` or `dt`, each channel a row: read in place where it is
+/// float64 in C order, converted once, whole, otherwise).
 #[derive(Clone, Copy, Debug)]
 pub enum StepsRef<'a> {
     /// The same step before every sample, s.

@@ -243,7 +243,19 @@ fn channel_steps<'py>(
     let shape = a.shape.clone();
     match *shape.as_slice() {
         [c, n] => {
-            check_lens(name, &vec![n; c], lens)?;
+            // Compared before anything is allocated per channel: a (C, 0) array costs NumPy
+            // nothing for any C.
+            if c != lens.len() {
+                return Err(PyValueError::new_err(format!(
+                    "{name}: has {c} channels but gyr has {}",
+                    lens.len()
+                )));
+            }
+            if let Some((k, w)) = lens.iter().enumerate().find(|&(_, &w)| w != n) {
+                return Err(PyValueError::new_err(format!(
+                    "{name}[{k}]: has {n} samples but gyr[{k}] has {w}"
+                )));
+            }
             Ok(ChannelSteps::Rows { array: a, n, times })
         }
         _ => Err(PyValueError::new_err(format!(
@@ -441,7 +453,14 @@ pub fn run_many<'py>(
                 "out: only for (C, N, 3) input arrays, not lists of channels",
             ));
         }
-        let inputs = [Some(gyr), Some(acc), mag.filter(|m| !m.is_none())];
+        // `t` or `dt` as a (C, N) float64 array is read in place, as the sensors are.
+        let inputs = [
+            Some(gyr),
+            Some(acc),
+            mag.filter(|m| !m.is_none()),
+            dt.filter(|x| !x.is_none()),
+            t.filter(|x| !x.is_none()),
+        ];
         check_out_memory(py, out, &inputs)?;
     }
     let has_cov = specs
@@ -479,7 +498,7 @@ fn check_out_memory(
     let items: Vec<(String, Bound<'_, PyAny>)> =
         out.iter().map(|(k, v)| (k.to_string(), v)).collect();
     for (i, (key, array)) in items.iter().enumerate() {
-        let named_inputs = ["gyr", "acc", "mag"].into_iter().zip(inputs);
+        let named_inputs = ["gyr", "acc", "mag", "dt", "t"].into_iter().zip(inputs);
         for (name, input) in named_inputs.filter_map(|(n, x)| x.map(|x| (n, x))) {
             if shares.call1((array, input))?.is_truthy()? {
                 return Err(PyValueError::new_err(format!(

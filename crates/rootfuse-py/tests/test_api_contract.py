@@ -384,7 +384,7 @@ def test_smooth_shares_the_online_scale_estimate():
     assert "gyro_scale" not in plain
     shared = rf.smooth("flagship", r["gyr"], r["acc"], None, t=r["t"], dof=6)
     n = len(r["t"]) // 2 * 2
-    pairs = lambda x: x[:n].reshape(n // 2, 2, 3).mean(axis=1)
+    pairs = lambda x: x[:n].reshape(n // 2, 2, 3).mean(axis=1)  # noqa: E731
     f = rf.Filter("flagship", dof=6, precision="f32")
     f.update_batch(pairs(r["gyr"]), r["acc"][1:n:2], None, t=r["t"][1:n:2])
     np.testing.assert_array_equal(shared["gyro_scale"], f.gyro_scale)

@@ -153,6 +153,15 @@ def test_run_many_into_given_arrays(dtype):
         rf.run_many("mahony", np.frombuffer(memoryview(raw)[: C * N * 3 * np.dtype(dtype).itemsize], dtype).reshape(C, N, 3),
                     acc, None, 0.01, bias=False, flags=False,
                     out={"quat": np.frombuffer(raw, dtype).reshape(C, N, 4)})
+    # Sample times as a (C, N) float64 array are read in place, as the sensors are: an output
+    # over their memory is refused too.
+    raw = bytearray(C * N * 4 * np.dtype(dtype).itemsize)
+    times = np.frombuffer(raw, np.float64, count=C * N).reshape(C, N)
+    times[:] = np.arange(N) * 0.01
+    with pytest.raises(ValueError, match=r"out\[\"quat\"\]: shares memory with t"):
+        rf.run_many("mahony", gyr, acc, None, t=times, bias=False, flags=False,
+                    out={"quat": np.frombuffer(raw, dtype).reshape(C, N, 4)})
+    np.testing.assert_array_equal(times, np.broadcast_to(np.arange(N) * 0.01, (C, N)))
     both = np.empty((C, N, 4), dtype)
     with pytest.raises(ValueError, match=r"shares memory with out\[\"bias\"\]"):
         rf.run_many("mahony", gyr, acc, None, 0.01, flags=False,

@@ -212,8 +212,9 @@ params! {
         /// (`gyr_scale_window`), so that both passes share one estimate; 0 leaves the
         /// readings as they are. The passes estimate none of their own: from opposite ends of
         /// the recording they would disagree while they learn it. It costs that pass, about a
-        /// fifth of the smoother's time (BROAD 14 smoothed, 0 → 1: 9D 1.562° → 1.547°, 6D
-        /// 2.288° → 1.902°, inclination 0.528° → 0.524°; the time, docs/performance.md).
+        /// sixth of the smoother's time (BROAD 14 smoothed, 0 → 1: 9D 1.562° → 1.547°, 6D
+        /// 2.288° → 1.911°, inclination 0.528° → 0.522° in 9D, 0.524° in 6D; the time,
+        /// docs/performance.md).
         smoothing_gyro_scale: bool = 1.0, "1", [0.0, 1.0];
         /// Largest deviation of the specific force from its low-pass (the gravity estimate)
         /// that is taken as motion. A sample further off is a spike, not an acceleration the
