@@ -165,15 +165,13 @@ impl Inputs<'_> {
                 }
             }
             StepsRef::Times(t) => {
-                let mut rest = &mut tile[..];
-                if start == 0 && !rest.is_empty() {
-                    rest[0]
-                        .1
-                        .set_lane(lane, <L::Scalar as Lane>::from_f64(self.steps.at(0)));
-                    rest = &mut rest[1..];
-                }
-                let from = start.max(1) - 1;
-                let pairs = t.get(from..).unwrap_or_default().windows(2);
+                // The first step as `at` gives it (sample 0 has none of its own), the others
+                // from consecutive times.
+                let Some(((_, first), rest)) = tile.split_first_mut() else {
+                    return;
+                };
+                first.set_lane(lane, <L::Scalar as Lane>::from_f64(self.steps.at(start)));
+                let pairs = t.get(start..).unwrap_or_default().windows(2);
                 for ((_, d), w) in rest.iter_mut().zip(pairs) {
                     d.set_lane(lane, <L::Scalar as Lane>::from_f64(w[1] - w[0]));
                 }

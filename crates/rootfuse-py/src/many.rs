@@ -140,7 +140,14 @@ fn check_channel_memory(channels: usize) -> PyResult<()> {
         .map_err(|_| too_many("gyr", channels))
 }
 
-fn check_lens(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
+/// `got`'s channel count and lengths against `want`'s (an iterator, so that the rows of one
+/// `(C, N)` array are compared without a vector of `C` lengths: a `(C, 0)` array costs NumPy
+/// nothing for any `C`).
+fn check_lens(
+    name: &str,
+    got: impl ExactSizeIterator<Item = usize>,
+    want: &[usize],
+) -> PyResult<()> {
     if got.len() != want.len() {
         return Err(PyValueError::new_err(format!(
             "{name}: has {} channels but gyr has {}",
@@ -148,7 +155,7 @@ fn check_lens(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
             want.len()
         )));
     }
-    for (c, (g, w)) in got.iter().zip(want).enumerate() {
+    for (c, (g, &w)) in got.zip(want).enumerate() {
         if g != w {
             return Err(PyValueError::new_err(format!(
                 "{name}[{c}]: has {g} samples but gyr[{c}] has {w}"
@@ -236,26 +243,14 @@ fn channel_steps<'py>(
             got.push(v.len());
             out.push(make(v));
         }
-        check_lens(name, &got, lens)?;
+        check_lens(name, got.into_iter(), lens)?;
         return Ok(ChannelSteps::Each(out));
     }
     let a = float_array(obj, name)?;
     let shape = a.shape.clone();
     match *shape.as_slice() {
         [c, n] => {
-            // Compared before anything is allocated per channel: a (C, 0) array costs NumPy
-            // nothing for any C.
-            if c != lens.len() {
-                return Err(PyValueError::new_err(format!(
-                    "{name}: has {c} channels but gyr has {}",
-                    lens.len()
-                )));
-            }
-            if let Some((k, w)) = lens.iter().enumerate().find(|&(_, &w)| w != n) {
-                return Err(PyValueError::new_err(format!(
-                    "{name}[{k}]: has {n} samples but gyr[{k}] has {w}"
-                )));
-            }
+            check_lens(name, core::iter::repeat_n(n, c), lens)?;
             Ok(ChannelSteps::Rows { array: a, n, times })
         }
         _ => Err(PyValueError::new_err(format!(
@@ -412,7 +407,7 @@ pub fn run_many<'py>(
     };
     let g = channels(gyr, "gyr")?;
     let a = channels(acc, "acc")?;
-    check_lens("acc", &a.lens, &g.lens)?;
+    check_lens("acc", a.lens.iter().copied(), &g.lens)?;
     if g.stacked != a.stacked {
         return Err(PyTypeError::new_err(
             "acc: give gyr, acc and mag in the same form: all (C, N, 3) arrays or all lists",
@@ -421,7 +416,7 @@ pub fn run_many<'py>(
     let m = match mag {
         Some(m) if !m.is_none() => {
             let m = channels(m, "mag")?;
-            check_lens("mag", &m.lens, &g.lens)?;
+            check_lens("mag", m.lens.iter().copied(), &g.lens)?;
             Some(m)
         }
         _ => None,
