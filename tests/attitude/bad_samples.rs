@@ -15,7 +15,9 @@
 //! most the sum of these).
 use crate::common::broad_dir;
 use rand::{Rng, SeedableRng};
-use rootfuse_attitude::blocks::{lowpass_gain, lowpass_gains};
+use rootfuse_attitude::blocks::{
+    lowpass_gain, lowpass_gain_at_rate, lowpass_gains, lowpass_gains_at_rates,
+};
 use rootfuse_attitude::registry::{FilterKind, FilterSpec};
 use rootfuse_attitude::{Dof, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_batch::{Precision, run_recordings};
@@ -565,4 +567,78 @@ fn lowpass_gain_is_exact() {
     assert_eq!(lowpass_gain(1.0, f64::INFINITY), 0.0);
     assert_eq!(lowpass_gain(f64::INFINITY, 1.0), 1.0);
     assert_eq!(lowpass_gain(1e6, 1.0), 1.0);
+}
+
+/// The rate form `lowpass_gain_at_rate(dt, 1/τ)` (the flagship's, with its rates converted
+/// from `f64` once): within 3 ulp of `−expm1(−dt/τ)` in f64 and f32 over `dt/τ ∈ [1e-12,
+/// 1e6]` (the short and long series, the halvings and doublings, libm's range), lanes equal
+/// to scalars bit for bit with every range side by side in one vector, several rates at once
+/// the bits of one call each, and the ends: a rate of ∞ (`τ = 0`) is no low-pass, 0 (`τ =
+/// ∞`) holds, `dt = 0` takes nothing in.
+#[test]
+fn lowpass_gain_at_rate_is_exact() {
+    use wide::{f32x8, f64x4};
+    let (mut worst64, mut worst32) = (0.0f64, 0.0f64);
+    for k in 0..=1800 {
+        let x = 10f64.powf(-12.0 + k as f64 * 0.01);
+        for tau in [1.0, 0.5, 3.0, 0.3] {
+            let dt = x * tau;
+            let exact = -(-(dt / tau)).exp_m1();
+            let got = lowpass_gain_at_rate(dt, 1.0 / tau);
+            worst64 = worst64.max((got - exact).abs() / (exact * f64::EPSILON));
+            let dt32 = dt as f32;
+            let exact32 = -(-(f64::from(dt32) / tau)).exp_m1();
+            let got32 = lowpass_gain_at_rate(dt32, (1.0 / tau) as f32);
+            let ulps32 = (f64::from(got32) - exact32).abs() / (exact32 * f64::from(f32::EPSILON));
+            worst32 = worst32.max(ulps32);
+        }
+    }
+    eprintln!("lowpass_gain_at_rate: worst {worst64:.2} ulp in f64, {worst32:.2} in f32");
+    assert!(worst64 <= 3.0, "f64: {worst64} ulp");
+    assert!(worst32 <= 3.0, "f32: {worst32} ulp");
+    // Lanes equal scalars: the ends in single lanes, then x from 1e-4 to 3.9 (the short
+    // series, the long one, one to three halvings) side by side.
+    let dts = [0.01, 0.0, 1e-9, 5.0, 0.01, f64::INFINITY, f64::NAN, 2.0];
+    let rates = [f64::INFINITY, 0.0, 1.0, 1e3, 0.0, 1.0, 1.0, f64::NAN];
+    let mixed_dts: [f64; 8] = core::array::from_fn(|i| 0.0035 * (1.0 + 0.01 * (i as f64 - 3.5)));
+    let mixed_rates = [10.0, 40.0, 1.0, 0.05, 20.0, 100.0, 1000.0, 1111.0];
+    for (dts, rates) in [(dts, rates), (mixed_dts, mixed_rates)] {
+        for c in 0..2 {
+            let g = lowpass_gain_at_rate(
+                f64x4::from_fn(|i| dts[4 * c + i]),
+                f64x4::from_fn(|i| rates[4 * c + i]),
+            );
+            for i in 0..4 {
+                let one = lowpass_gain_at_rate(dts[4 * c + i], rates[4 * c + i]);
+                assert_eq!(g.extract(i).to_bits(), one.to_bits());
+            }
+        }
+        let (dt, rate) = (
+            f32x8::from_fn(|i| dts[i] as f32),
+            f32x8::from_fn(|i| rates[i] as f32),
+        );
+        let g = lowpass_gain_at_rate(dt, rate);
+        for i in 0..8 {
+            let one = lowpass_gain_at_rate(dts[i] as f32, rates[i] as f32);
+            assert_eq!(g.extract(i).to_bits(), one.to_bits());
+        }
+        // Several rates at once: the bits of one call each.
+        let other = f32x8::from_fn(|i| [2.0, 0.5, 30.0][i % 3]);
+        let [a, b] = lowpass_gains_at_rates(dt, [rate, other]);
+        assert_eq!(a.to_array(), lowpass_gain_at_rate(dt, rate).to_array());
+        assert_eq!(b.to_array(), lowpass_gain_at_rate(dt, other).to_array());
+    }
+    assert_eq!(
+        lowpass_gain_at_rate(0.01, f64::INFINITY),
+        1.0,
+        "τ = 0: no low-pass"
+    );
+    assert_eq!(lowpass_gain_at_rate(0.01, 0.0), 0.0, "τ = ∞ holds");
+    assert_eq!(
+        lowpass_gain_at_rate(0.0, f64::INFINITY),
+        0.0,
+        "dt = 0 takes nothing in"
+    );
+    assert_eq!(lowpass_gain_at_rate(f64::INFINITY, 1.0), 1.0);
+    assert_eq!(lowpass_gain_at_rate(0.01, -1.0), 1.0);
 }

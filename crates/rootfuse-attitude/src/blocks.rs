@@ -203,11 +203,11 @@ fn gyro_series<T: Lane>(a2: T) -> (T, T) {
 /// keeps its digits (`1 − exp` would cancel) and a large one gives 1 rather than diverging.
 /// Up to `x = 4` (every filter's usual case: `dt` of milliseconds against `τ` of tenths of a
 /// second and more, or a few samples against the shortest `τ`) it is computed in the lane's
-/// own arithmetic, in SIMD, with no libm call: `x` is halved until it is at most `1/8`, the
-/// gain of the halved step taken from the Taylor series by Horner (through `x¹²` in `f64`,
-/// `x⁶` in `f32`; the first dropped term is below 3·10⁻¹⁹ and 10⁻⁹ of the result), then
-/// doubled back as often by `k(2y) = k(y)·(2 − k(y))` (two equal steps; no
-/// cancellation, since `2 − k ≥ 1`). A sample rate with jitter, which changes `dt` at every
+/// own arithmetic, in SIMD, with no libm call: up to `x = 1/8` from the Taylor series by
+/// Horner through `x¹²` in `f64` and `x⁶` in `f32`, up to `1/2` through `x¹⁵` and `x⁹` (the
+/// first dropped term is below 2·10⁻¹⁸ and 10⁻⁹ of the result); a larger `x` is halved until
+/// it is at most `1/2`, and the gain of the halved step doubled back as often by `k(2y) =
+/// k(y)·(2 − k(y))` (two equal steps; no cancellation, since `2 − k ≥ 1`). A sample rate with jitter, which changes `dt` at every
 /// sample, thus costs a few multiply-adds per gain instead of a libm call per lane. Larger
 /// `x` calls libm's `expm1` in `f64`, rounded once. Against `−expm1(−dt/τ)` of the lane's `dt`
 /// and `τ` the result is within 2 ulp in `f64` and `f32` (the division, the series and each
@@ -264,6 +264,76 @@ pub fn lowpass_gains<T: Lane, const N: usize>(dt: T, tau: [T; N]) -> [T; N] {
     }
 }
 
+/// [`lowpass_gains`] with each time constant given as its rate `1/τ` (1/s, per lane): `x =
+/// dt·rate` is a multiplication where [`lowpass_gains`] divides, so a filter that converts
+/// its time constants to rates once, when it is built, pays no division per gain at a
+/// jittered `dt`. `x` rounds twice (the rate and the product) where `dt/τ` rounds once: the
+/// gain is within 3 ulp of `−expm1(−dt/τ)`. A filter takes every gain of one time constant
+/// in the same form, or a lane computed in one form would differ from its scalar in the other.
+///
+/// Special values, per lane: a rate of `+∞` (`τ = 0`), a negative or a NaN rate is **no
+/// low-pass** (`k = 1` for `dt > 0`); a rate of 0 (`τ = ∞`) holds (`k = 0`); `dt ≤ 0` or NaN
+/// takes nothing in (`k = 0`).
+///
+/// ```
+/// use rootfuse_attitude::blocks::{lowpass_gain, lowpass_gains_at_rates};
+/// let [a, b, c] = lowpass_gains_at_rates(0.01_f32, [2.0, f32::INFINITY, 0.0]);
+/// assert!((a - lowpass_gain(0.01, 0.5)).abs() <= 3.0 * f32::EPSILON * a);
+/// assert_eq!((b, c), (1.0, 0.0));
+/// ```
+#[inline]
+pub fn lowpass_gains_at_rates<T: Lane, const N: usize>(dt: T, rates: [T; N]) -> [T; N] {
+    let x = rates.map(|rate| dt * rate);
+    let mut series = dt.simd_gt(T::zero());
+    for (rate, x) in rates.iter().zip(&x) {
+        series = series & rate.simd_ge(T::zero()) & x.simd_le(T::from_f64(GAIN_SERIES_LIMIT));
+    }
+    if series.all() {
+        x.map(gain_series)
+    } else {
+        rates.map(|rate| lowpass_gain_at_rate(dt, rate))
+    }
+}
+
+/// [`lowpass_gains_at_rates`] for one rate (1/s): the same bits.
+#[inline]
+pub fn lowpass_gain_at_rate<T: Lane>(dt: T, rate: T) -> T {
+    let x = dt * rate;
+    let in_range = dt.simd_gt(T::zero())
+        & rate.simd_ge(T::zero())
+        & x.simd_le(T::from_f64(GAIN_HALVING_LIMIT));
+    if in_range.all() {
+        gain_by_halving(x)
+    } else {
+        gain_at_rate_per_lane(dt, rate)
+    }
+}
+
+/// [`lowpass_gain_at_rate`] lane by lane, out of line like [`gain_per_lane`].
+#[cold]
+#[inline(never)]
+fn gain_at_rate_per_lane<T: Lane>(dt: T, rate: T) -> T {
+    T::from_fn(|i| scalar_gain_at_rate(dt.extract(i), rate.extract(i)))
+}
+
+/// One lane of [`lowpass_gain_at_rate`], in the lane's precision.
+#[inline]
+fn scalar_gain_at_rate<S: Lane + PartialOrd + Into<f64>>(dt: S, rate: S) -> S {
+    // A NaN `dt` takes nothing in, a NaN rate is no low-pass (as `scalar_gain`'s NaN `tau`).
+    if dt > S::zero() && rate > S::zero() {
+        let x = dt * rate;
+        if x <= S::from_f64(GAIN_HALVING_LIMIT) {
+            gain_by_halving(x)
+        } else {
+            S::from_f64(-libm::expm1(-(dt.into() * rate.into())))
+        }
+    } else if dt > S::zero() && rate != S::zero() {
+        S::one()
+    } else {
+        S::zero()
+    }
+}
+
 /// [`lowpass_gain`] lane by lane: for lanes outside the halving range (a skipped sample,
 /// `τ = 0`, a long gap), out of line so that the usual path stays small.
 #[cold]
@@ -272,12 +342,12 @@ fn gain_per_lane<T: Lane>(dt: T, tau: T) -> T {
     T::from_fn(|i| scalar_gain(dt.extract(i), tau.extract(i)))
 }
 
-/// The largest `x = dt/τ` whose gain [`lowpass_gain`] computes by halving `x` into the
-/// series' range (at most 5 halvings).
+/// The largest `x = dt/τ` whose gain [`lowpass_gain`] computes in the lane's arithmetic
+/// (at most 3 halvings into the long series' range).
 const GAIN_HALVING_LIMIT: f64 = 4.0;
 
-/// `−expm1(−x) = Σ (−1)ⁿ⁺¹ xⁿ/n!`: the coefficients of `x¹ … x¹²`.
-const GAIN_SERIES: [f64; 12] = [
+/// `−expm1(−x) = Σ (−1)ⁿ⁺¹ xⁿ/n!`: the coefficients of `x¹ … x¹⁵`.
+const GAIN_SERIES: [f64; 15] = [
     1.0,
     -1.0 / 2.0,
     1.0 / 6.0,
@@ -290,24 +360,32 @@ const GAIN_SERIES: [f64; 12] = [
     -1.0 / 3628800.0,
     1.0 / 39916800.0,
     -1.0 / 479001600.0,
+    1.0 / 6227020800.0,
+    -1.0 / 87178291200.0,
+    1.0 / 1307674368000.0,
 ];
 
-/// The largest `x` [`lowpass_gain`] takes from its series (larger ones are halved into it).
+/// The largest `x` [`lowpass_gain`] takes from its short series (through `x¹²` in `f64`,
+/// `x⁶` in `f32`).
 const GAIN_SERIES_LIMIT: f64 = 0.125;
+
+/// The largest `x` it takes from its long series (through `x¹⁵` in `f64`, `x⁹` in `f32`);
+/// larger ones are halved into it.
+const GAIN_LONG_SERIES_LIMIT: f64 = 0.5;
 
 fn is_f64<L: Lane>() -> bool {
     core::mem::size_of::<L::Scalar>() == core::mem::size_of::<f64>()
 }
 
-/// `−expm1(−x)` for `0 < x ≤ GAIN_HALVING_LIMIT` in the arithmetic of `L` (see
-/// [`lowpass_gain`]): the series where every lane is in its range (the usual case, inline),
-/// else halving and doubling.
+/// `−expm1(−x)` for `0 ≤ x ≤ GAIN_HALVING_LIMIT` in the arithmetic of `L` (see
+/// [`lowpass_gain`]): the short series where every lane is in its range (the usual case,
+/// inline), else [`gain_beyond_short_series`].
 #[inline(always)]
 fn gain_by_halving<L: Lane>(x: L) -> L {
     if x.simd_gt(L::from_f64(GAIN_SERIES_LIMIT)).none() {
         gain_series(x)
     } else {
-        gain_halved(x)
+        gain_beyond_short_series(x)
     }
 }
 
@@ -316,7 +394,19 @@ fn gain_by_halving<L: Lane>(x: L) -> L {
 /// result, far below one rounding).
 #[inline(always)]
 fn gain_series<L: Lane>(x: L) -> L {
-    let terms = if is_f64::<L>() { 12 } else { 6 };
+    gain_series_to(x, if is_f64::<L>() { 12 } else { 6 })
+}
+
+/// The series at `x ≤ 1/2`, through `x¹⁵` in `f64` and `x⁹` in `f32` (the first dropped
+/// term is below 2·10⁻¹⁸ and 10⁻⁹ of the result).
+#[inline(always)]
+fn gain_long_series<L: Lane>(x: L) -> L {
+    gain_series_to(x, if is_f64::<L>() { 15 } else { 9 })
+}
+
+/// [`GAIN_SERIES`] through `xᵗᵉʳᵐˢ` by Horner.
+#[inline(always)]
+fn gain_series_to<L: Lane>(x: L, terms: usize) -> L {
     let mut p = L::from_f64(GAIN_SERIES[terms - 1]);
     for &c in GAIN_SERIES[..terms - 1].iter().rev() {
         p = p * x + L::from_f64(c);
@@ -324,16 +414,19 @@ fn gain_series<L: Lane>(x: L) -> L {
     p * x
 }
 
-/// [`gain_by_halving`] where some lane's `x` is above the series' range: each lane halved
-/// until it is in range, its series doubled back as often. The loops run as often as the
-/// lane that needs most; every other lane keeps its value through a select, so its result is
-/// the one it would have alone.
+/// [`gain_by_halving`] where some lane's `x` is above the short series' range. Per lane: `x ≤
+/// 1/8` from the short series, `x ≤ 1/2` from the long one, a larger `x` halved until it is
+/// at most 1/2 and its long series doubled back as often. The loops run as often as the lane
+/// that needs most; every other lane keeps its value through a select, so its result is the
+/// one it would have alone. A sample interval against the shortest window (a correction
+/// every few samples, 8 at 100 Hz against 0.3 s: `x ≈ 0.27`) takes the long series, without
+/// halving.
 #[inline(never)]
-fn gain_halved<L: Lane>(x: L) -> L {
-    // `GAIN_HALVING_LIMIT` needs at most 5 halvings; the bound keeps a caller's larger `x`
+fn gain_beyond_short_series<L: Lane>(x: L) -> L {
+    // `GAIN_HALVING_LIMIT` needs at most 3 halvings; the bound keeps a caller's larger `x`
     // from looping on.
-    const MAX_HALVINGS: usize = 5;
-    let limit = L::from_f64(GAIN_SERIES_LIMIT);
+    const MAX_HALVINGS: usize = 3;
+    let limit = L::from_f64(GAIN_LONG_SERIES_LIMIT);
     let (mut y, mut halvings, mut n) = (x, L::zero(), 0);
     while n < MAX_HALVINGS {
         let over = y.simd_gt(limit);
@@ -344,7 +437,13 @@ fn gain_halved<L: Lane>(x: L) -> L {
         halvings = L::select(over, halvings + L::one(), halvings);
         n += 1;
     }
-    let mut k = gain_series(y);
+    // Only a lane that was never halved can be in the short series' range.
+    let short = y.simd_le(L::from_f64(GAIN_SERIES_LIMIT));
+    let mut k = if short.any() {
+        L::select(short, gain_series(y), gain_long_series(y))
+    } else {
+        gain_long_series(y)
+    };
     for j in (0..n).rev() {
         let doubled = halvings.simd_gt(L::from_f64(j as f64));
         k = L::select(doubled, k * (L::from_f64(2.0) - k), k);

@@ -18,14 +18,12 @@ lane_state! {
         pub(super) tau_acc_long: T,
         pub(super) window_ratio: T,
         pub(super) acc_noise_rotation_share: T,
-        pub(super) window_tau: T,
         pub(super) acc_var: T,
         pub(super) acc_gate: T,
         pub(super) acc_adapt_window: T,
         pub(super) model_error_scale: T,
         pub(super) model_error_rotation_scale: T,
         pub(super) model_error_ratio: T,
-        pub(super) model_error_window: T,
         pub(super) heading_model_error_scale: T,
         pub(super) gyr_scale_error: T,
         pub(super) gyr_scale_window: T,
@@ -43,7 +41,6 @@ lane_state! {
         /// `startup_time`, at least 1 µs (it divides).
         pub(super) startup_time: T,
         pub(super) reacquire_std: T,
-        pub(super) rest_tau: T,
         pub(super) rest_gyr2: T,
         pub(super) rest_acc2: T,
         pub(super) rest_time: T,
@@ -51,7 +48,6 @@ lane_state! {
         pub(super) init_bias_std: T,
         pub(super) init_tilt_std: T,
         pub(super) init_heading_std: T,
-        pub(super) bias_step_window: T,
         /// `acc_noise²/(2·bias_step_window)·bias_step_gate²`: the squared norm of the running
         /// innovation mean beyond which a bias step is declared (0: never).
         pub(super) bias_step_threshold: T,
@@ -61,14 +57,26 @@ lane_state! {
         pub(super) mag_var: T,
         pub(super) mag_norm_th: T,
         pub(super) mag_dip_th: T,
-        pub(super) mag_ref_tau: T,
-        pub(super) mag_lowpass_tau: T,
         pub(super) mag_settle_time: T,
-        pub(super) mag_azimuth_tau: T,
         pub(super) adopted_field_error_scale: T,
         pub(super) mag_new_time: T,
         pub(super) mag_reject_time: T,
         pub(super) mag_home_time: T,
+        /// The rates `1/τ` (1/s) of the low-pass gains ([`lowpass_gains_at_rates`]: a
+        /// multiplication per gain at a jittered `dt`, no division): `rest_tau`, each stage
+        /// of the `tau_acc` and `tau_acc_long` windows (`2/τ`), `window_tau`,
+        /// `acc_adapt_window`, `model_error_window`, `bias_step_window`, `mag_ref_tau`,
+        /// `mag_lowpass_tau` and `mag_azimuth_tau` (a time constant of 0 is a rate of `∞`).
+        pub(super) rest_rate: T,
+        pub(super) acc_stage_rate: T,
+        pub(super) acc_long_stage_rate: T,
+        pub(super) window_rate: T,
+        pub(super) adapt_rate: T,
+        pub(super) model_error_rate: T,
+        pub(super) bias_step_rate: T,
+        pub(super) mag_ref_rate: T,
+        pub(super) mag_lowpass_rate: T,
+        pub(super) mag_azimuth_rate: T,
     }
 }
 
@@ -85,14 +93,12 @@ impl<T: Lane> Coefficients<T> {
             tau_acc_long: p.coef(|p| p.tau_acc_long),
             window_ratio: p.coef(|p| p.window_ratio),
             acc_noise_rotation_share: p.coef(|p| p.acc_noise_rotation_share),
-            window_tau: p.coef(|p| p.window_tau),
             acc_var: p.coef(|p| p.acc_noise * p.acc_noise),
             acc_gate: p.coef(|p| p.acc_gate),
             acc_adapt_window: p.coef(|p| p.acc_adapt_window),
             model_error_scale: p.coef(|p| p.model_error_scale),
             model_error_rotation_scale: p.coef(|p| p.model_error_rotation_scale),
             model_error_ratio: p.coef(|p| p.model_error_ratio),
-            model_error_window: p.coef(|p| p.model_error_window),
             heading_model_error_scale: p.coef(|p| p.heading_model_error_scale),
             gyr_scale_error: p.coef(|p| p.gyr_scale_error),
             gyr_scale_window: p.coef(|p| p.gyr_scale_window),
@@ -104,7 +110,6 @@ impl<T: Lane> Coefficients<T> {
             acc_reject_time: p.coef(|p| p.acc_reject_time),
             startup_time: p.coef(|p| p.startup_time.max(1e-6)),
             reacquire_std: p.coef(|p| p.reacquire_std),
-            rest_tau: p.coef(|p| p.rest_tau),
             rest_gyr2: p.coef(|p| p.rest_gyr * p.rest_gyr),
             rest_acc2: p.coef(|p| p.rest_acc * p.rest_acc),
             rest_time: p.coef(|p| p.rest_time),
@@ -112,7 +117,6 @@ impl<T: Lane> Coefficients<T> {
             init_bias_std: p.coef(|p| p.init_bias_std),
             init_tilt_std: p.coef(|p| p.init_tilt_std),
             init_heading_std: p.coef(|p| p.init_heading_std),
-            bias_step_window: p.coef(|p| p.bias_step_window),
             bias_step_threshold: p.coef(|p| {
                 // White innovation of density acc_noise² averaged with time constant T has
                 // variance acc_noise²/(2T) per axis.
@@ -126,14 +130,21 @@ impl<T: Lane> Coefficients<T> {
             mag_var: p.coef(|p| p.mag_noise * p.mag_noise),
             mag_norm_th: p.coef(|p| p.mag_norm_th),
             mag_dip_th: p.coef(|p| p.mag_dip_th),
-            mag_ref_tau: p.coef(|p| p.mag_ref_tau),
-            mag_lowpass_tau: p.coef(|p| p.mag_lowpass_tau),
             mag_settle_time: p.coef(|p| p.mag_settle_time),
-            mag_azimuth_tau: p.coef(|p| p.mag_azimuth_tau),
             adopted_field_error_scale: p.coef(|p| p.adopted_field_error_scale),
             mag_new_time: p.coef(|p| p.mag_new_time),
             mag_reject_time: p.coef(|p| p.mag_reject_time),
             mag_home_time: p.coef(|p| p.mag_home_time),
+            rest_rate: p.coef(|p| 1.0 / p.rest_tau),
+            acc_stage_rate: p.coef(|p| 2.0 / p.tau_acc),
+            acc_long_stage_rate: p.coef(|p| 2.0 / p.tau_acc_long),
+            window_rate: p.coef(|p| 1.0 / p.window_tau),
+            adapt_rate: p.coef(|p| 1.0 / p.acc_adapt_window),
+            model_error_rate: p.coef(|p| 1.0 / p.model_error_window),
+            bias_step_rate: p.coef(|p| 1.0 / p.bias_step_window),
+            mag_ref_rate: p.coef(|p| 1.0 / p.mag_ref_tau),
+            mag_lowpass_rate: p.coef(|p| 1.0 / p.mag_lowpass_tau),
+            mag_azimuth_rate: p.coef(|p| 1.0 / p.mag_azimuth_tau),
         }
     }
 

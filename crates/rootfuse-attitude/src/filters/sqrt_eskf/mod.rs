@@ -10,7 +10,10 @@ use super::upper_factor::{add_diagonal_noise, carlson_apply, carlson_gains};
 use super::{
     Dof, LaneParams, OrientationFilter, Rejections, ScreenBounds, Screened, lane_state, params,
 };
-use crate::blocks::{STANDARD_GRAVITY, field_heading_error, lowpass_gain, tilt_from_acc};
+use crate::blocks::{
+    STANDARD_GRAVITY, field_heading_error, lowpass_gain_at_rate, lowpass_gains_at_rates,
+    tilt_from_acc,
+};
 use crate::{ImuSample, Quat, Vec3};
 use rootfuse_lane::{Lane, Mask, Mat, Select};
 

@@ -3,7 +3,7 @@
 //! per 9D field test ([`PerHeading`]).
 
 use super::Coefficients;
-use crate::blocks::lowpass_gains;
+use super::lowpass_gains_at_rates;
 use core::ops::Deref;
 use rootfuse_lane::{Lane, Mask};
 
@@ -83,19 +83,18 @@ impl<T: Lane> ForTime<T> for PerDt<T> {
         // The long window's gains only where some lane runs it (a jittered `dt` recomputes
         // every gain at every sample).
         let two_windows = c.tau_acc_long.simd_gt(T::zero()).any();
-        let half = T::from_f64(0.5);
         let [k_rest, k_acc, k_acc_long, k_window] = if two_windows {
-            lowpass_gains(
+            lowpass_gains_at_rates(
                 dt,
                 [
-                    c.rest_tau,
-                    c.tau_acc * half,
-                    c.tau_acc_long * half,
-                    c.window_tau,
+                    c.rest_rate,
+                    c.acc_stage_rate,
+                    c.acc_long_stage_rate,
+                    c.window_rate,
                 ],
             )
         } else {
-            let [k_rest, k_acc] = lowpass_gains(dt, [c.rest_tau, c.tau_acc * half]);
+            let [k_rest, k_acc] = lowpass_gains_at_rates(dt, [c.rest_rate, c.acc_stage_rate]);
             [k_rest, k_acc, T::zero(), T::zero()]
         };
         Self {
@@ -133,13 +132,10 @@ impl<T: Lane> ForTime<T> for PerInterval<T> {
         // The bias-step detector's gain only where some lane detects bias steps (off by
         // default).
         let [k_adapt, k_model, k_bias_step] = if c.bias_step_threshold.simd_gt(T::zero()).any() {
-            lowpass_gains(
-                time,
-                [c.acc_adapt_window, c.model_error_window, c.bias_step_window],
-            )
+            lowpass_gains_at_rates(time, [c.adapt_rate, c.model_error_rate, c.bias_step_rate])
         } else {
             let [k_adapt, k_model] =
-                lowpass_gains(time, [c.acc_adapt_window, c.model_error_window]);
+                lowpass_gains_at_rates(time, [c.adapt_rate, c.model_error_rate]);
             [k_adapt, k_model, T::zero()]
         };
         Self {
@@ -170,13 +166,13 @@ pub(super) struct PerHeading<T: Lane> {
 impl<T: Lane> ForTime<T> for PerHeading<T> {
     #[inline]
     fn compute(time: T, c: &Coefficients<T>) -> Self {
-        let [k_ref, k_mag, k_azimuth, k_model] = lowpass_gains(
+        let [k_ref, k_mag, k_azimuth, k_model] = lowpass_gains_at_rates(
             time,
             [
-                c.mag_ref_tau,
-                c.mag_lowpass_tau,
-                c.mag_azimuth_tau,
-                c.model_error_window,
+                c.mag_ref_rate,
+                c.mag_lowpass_rate,
+                c.mag_azimuth_rate,
+                c.model_error_rate,
             ],
         );
         Self {

@@ -114,7 +114,7 @@ impl<T: Lane> SqrtEskf<T> {
         let ramp = inertial.ramp;
         let tau = self.coef.tau_acc_long * ramp;
         let k = if ramp.simd_lt(T::one()).any() {
-            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+            lowpass_gain_at_rate(s.dt, self.coef.acc_long_stage_rate / ramp)
         } else {
             self.per_dt.k_acc_long
         };

@@ -226,9 +226,10 @@ impl<T: Lane> SqrtEskf<T> {
         let tau = self.coef.tau_acc * ramp;
         // Two equal first-order stages (τ/2 each): a critically damped second-order low-pass
         // whose mean delay is still τ, with −40 dB/decade above its corner. After the
-        // start-up (ramp = 1 in every lane) the gain is the cached one.
+        // start-up (ramp = 1 in every lane) the gain is the cached one; a lane at ramp 1
+        // before its neighbours divides its rate by one, the cached gain's bits.
         let k_acc = if ramp.simd_lt(T::one()).any() {
-            lowpass_gain(s.dt, tau * T::from_f64(0.5))
+            lowpass_gain_at_rate(s.dt, self.coef.acc_stage_rate / ramp)
         } else {
             self.per_dt.k_acc
         };
