@@ -454,7 +454,7 @@ mod recovery {
     }
 }
 
-/// `lowpass_gain` is `−expm1(−dt/τ)`: within 2 ulp in f64 and f32 over
+/// `lowpass_gain` is `−expm1(−dt/τ)`: relative error within 2ε in f64 and f32 over
 /// `dt/τ ∈ [1e-12, 1e6]` (the series, the halvings and doublings, and libm's range), lanes
 /// equal to scalars bit for bit, and the ends documented: `τ = 0` is no low-pass (gain 1),
 /// `dt = 0` takes nothing in.
@@ -484,7 +484,7 @@ fn lowpass_gain_is_exact() {
             worst32 = worst32.max(ulps32);
         }
     }
-    eprintln!("lowpass_gain: worst {worst64:.2} ulp in f64, {worst32:.2} in f32");
+    eprintln!("lowpass_gain: worst relative error {worst64:.2}ε in f64, {worst32:.2}ε in f32");
     assert!(worst64 <= 2.0, "f64: {worst64} ulp");
     assert!(worst32 <= 2.0, "f32: {worst32} ulp");
     // Lanes equal scalars, with the ends in single lanes.
@@ -511,10 +511,11 @@ fn lowpass_gain_is_exact() {
             lowpass_gain(dts[i] as f32, taus[i] as f32).to_bits()
         );
     }
-    // Every lane in the halving range (a jittered `dt`, and a few samples against a short
-    // τ): the SIMD path, each lane halved and doubled as often as it needs alone (0 to 6).
+    // Every lane in the SIMD range (a jittered `dt`, and a few samples against a short τ):
+    // the short series, the long one, and each lane halved and doubled as often as it needs
+    // alone (0 to 3; the last lane's `x` is 3.8).
     let dts: [f32; 8] = core::array::from_fn(|i| 0.0035 * (1.0 + 0.01 * (i as f32 - 3.5)));
-    let taus: [f32; 8] = [0.1, 0.15, 1.0, 20.0, 0.05, 0.012, 0.001, 0.0009];
+    let taus: [f32; 8] = [0.1, 0.15, 1.0, 20.0, 0.05, 0.012, 0.001, 0.00095];
     let g = lowpass_gain(f32x8::from_fn(|i| dts[i]), f32x8::from_fn(|i| taus[i]));
     let g64 = lowpass_gain(
         f64x4::from_fn(|i| f64::from(dts[i + 4])),
@@ -570,11 +571,11 @@ fn lowpass_gain_is_exact() {
 }
 
 /// The rate form `lowpass_gain_at_rate(dt, 1/τ)` (the flagship's, with its rates converted
-/// from `f64` once): within 3 ulp of `−expm1(−dt/τ)` in f64 and f32 over `dt/τ ∈ [1e-12,
-/// 1e6]` (the short and long series, the halvings and doublings, libm's range), lanes equal
-/// to scalars bit for bit with every range side by side in one vector, several rates at once
-/// the bits of one call each, and the ends: a rate of ∞ (`τ = 0`) is no low-pass, 0 (`τ =
-/// ∞`) holds, `dt = 0` takes nothing in.
+/// from `f64` once): relative error within 3ε of `−expm1(−dt/τ)` in f64 and f32 over
+/// `dt/τ ∈ [1e-12, 1e6]` (the short and long series, the halvings and doublings, libm's
+/// range), lanes equal to scalars bit for bit with every range side by side in one vector,
+/// several rates at once the bits of one call each, and the ends: a rate of ∞ (`τ = 0`) is
+/// no low-pass, ±0 (`τ = ±∞`) holds, `dt = 0` takes nothing in.
 #[test]
 fn lowpass_gain_at_rate_is_exact() {
     use wide::{f32x8, f64x4};
@@ -593,16 +594,21 @@ fn lowpass_gain_at_rate_is_exact() {
             worst32 = worst32.max(ulps32);
         }
     }
-    eprintln!("lowpass_gain_at_rate: worst {worst64:.2} ulp in f64, {worst32:.2} in f32");
+    eprintln!(
+        "lowpass_gain_at_rate: worst relative error {worst64:.2}ε in f64, {worst32:.2}ε in f32"
+    );
     assert!(worst64 <= 3.0, "f64: {worst64} ulp");
     assert!(worst32 <= 3.0, "f32: {worst32} ulp");
-    // Lanes equal scalars: the ends in single lanes, then x from 1e-4 to 3.9 (the short
-    // series, the long one, one to three halvings) side by side.
-    let dts = [0.01, 0.0, 1e-9, 5.0, 0.01, f64::INFINITY, f64::NAN, 2.0];
-    let rates = [f64::INFINITY, 0.0, 1.0, 1e3, 0.0, 1.0, 1.0, f64::NAN];
+    // Lanes equal scalars: the ends in single lanes; then `x` of 0.0002 to 3.8 (the short
+    // series, the long one, one to three halvings) side by side in the SIMD path; then the
+    // same beside one lane out of its range (every lane through the scalar form).
+    let dts = [0.01, 0.0, 1e-9, 5.0, 0.01, f64::INFINITY, f64::NAN, 0.01];
+    let rates = [f64::INFINITY, 0.0, 1.0, 1e3, -0.0, 1.0, 1.0, f64::NAN];
     let mixed_dts: [f64; 8] = core::array::from_fn(|i| 0.0035 * (1.0 + 0.01 * (i as f64 - 3.5)));
-    let mixed_rates = [10.0, 40.0, 1.0, 0.05, 20.0, 100.0, 1000.0, 1111.0];
-    for (dts, rates) in [(dts, rates), (mixed_dts, mixed_rates)] {
+    let mixed_rates = [10.0, 40.0, 1.0, 0.05, 250.0, 500.0, 1000.0, 1050.0];
+    let mut one_out = mixed_rates;
+    one_out[4] = f64::INFINITY;
+    for (dts, rates) in [(dts, rates), (mixed_dts, mixed_rates), (mixed_dts, one_out)] {
         for c in 0..2 {
             let g = lowpass_gain_at_rate(
                 f64x4::from_fn(|i| dts[4 * c + i]),
@@ -634,6 +640,10 @@ fn lowpass_gain_at_rate_is_exact() {
         "τ = 0: no low-pass"
     );
     assert_eq!(lowpass_gain_at_rate(0.01, 0.0), 0.0, "τ = ∞ holds");
+    assert_eq!(
+        lowpass_gain_at_rate(0.01_f32, -0.0).to_bits(),
+        0.0_f32.to_bits()
+    );
     assert_eq!(
         lowpass_gain_at_rate(0.0, f64::INFINITY),
         0.0,

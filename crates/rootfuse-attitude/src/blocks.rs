@@ -196,8 +196,9 @@ fn gyro_series<T: Lane>(a2: T) -> (T, T) {
 }
 
 /// The exact discrete gain `k = 1 − exp(−dt/τ)` of a first-order low-pass
-/// `y ← y + k·(x − y)` with time constant `tau` (s) over a step `dt` (s): the one low-pass
-/// discretisation of every filter in this crate.
+/// `y ← y + k·(x − y)` with time constant `tau` (s) over a step `dt` (s): the low-pass
+/// discretisation of every filter in this crate (the flagship takes it from rates `1/τ`,
+/// [`lowpass_gains_at_rates`]).
 ///
 /// It is exact for every `dt/τ` from 0 to ∞: `k = −expm1(−x)`, `x = dt/τ`, so a small `x`
 /// keeps its digits (`1 − exp` would cancel) and a large one gives 1 rather than diverging.
@@ -206,13 +207,15 @@ fn gyro_series<T: Lane>(a2: T) -> (T, T) {
 /// own arithmetic, in SIMD, with no libm call: up to `x = 1/8` from the Taylor series by
 /// Horner through `x¹²` in `f64` and `x⁶` in `f32`, up to `1/2` through `x¹⁵` and `x⁹` (the
 /// first dropped term is below 2·10⁻¹⁸ and 10⁻⁹ of the result); a larger `x` is halved until
-/// it is at most `1/2`, and the gain of the halved step doubled back as often by `k(2y) =
-/// k(y)·(2 − k(y))` (two equal steps; no cancellation, since `2 − k ≥ 1`). A sample rate with jitter, which changes `dt` at every
-/// sample, thus costs a few multiply-adds per gain instead of a libm call per lane. Larger
-/// `x` calls libm's `expm1` in `f64`, rounded once. Against `−expm1(−dt/τ)` of the lane's `dt`
-/// and `τ` the result is within 2 ulp in `f64` and `f32` (the division, the series and each
-/// doubling round in the lane's precision; `tests/attitude/bad_samples.rs` bounds it). Each lane is computed on its own, with the
-/// same operations in the same order, so a lane equals the scalar result bit for bit.
+/// it is at most `1/2` (at most 3 times), and the gain of the halved step doubled back as
+/// often by `k(2y) = k(y)·(2 − k(y))` (two equal steps; no cancellation, since `2 − k ≥ 1`).
+/// A sample rate with jitter, which changes `dt` at every sample, thus costs a few
+/// multiply-adds per gain instead of a libm call per lane. Larger `x` calls libm's `expm1` in
+/// `f64`, rounded once. Against `−expm1(−dt/τ)` of the lane's `dt` and `τ` the relative error
+/// is at most `2ε` in `f64` and `f32` (`ε` the precision's machine epsilon; the division, the
+/// series and each doubling round in the lane's precision; `tests/attitude/bad_samples.rs`
+/// bounds it). Each lane is computed on its own, with the same operations in the same order,
+/// so a lane equals the scalar result bit for bit.
 ///
 /// Special values, per lane:
 /// - `tau = 0` means **no low-pass**: `k = 1` (the output is the input) for any `dt > 0`;
@@ -268,12 +271,12 @@ pub fn lowpass_gains<T: Lane, const N: usize>(dt: T, tau: [T; N]) -> [T; N] {
 /// dt·rate` is a multiplication where [`lowpass_gains`] divides, so a filter that converts
 /// its time constants to rates once, when it is built, pays no division per gain at a
 /// jittered `dt`. `x` rounds twice (the rate and the product) where `dt/τ` rounds once: the
-/// gain is within 3 ulp of `−expm1(−dt/τ)`. A filter takes every gain of one time constant
+/// gain's relative error against `−expm1(−dt/τ)` is at most `3ε`. A filter takes every gain of one time constant
 /// in the same form, or a lane computed in one form would differ from its scalar in the other.
 ///
 /// Special values, per lane: a rate of `+∞` (`τ = 0`), a negative or a NaN rate is **no
-/// low-pass** (`k = 1` for `dt > 0`); a rate of 0 (`τ = ∞`) holds (`k = 0`); `dt ≤ 0` or NaN
-/// takes nothing in (`k = 0`).
+/// low-pass** (`k = 1` for `dt > 0`); a rate of ±0 (`τ = ±∞`) holds (`k = +0`); `dt ≤ 0` or
+/// NaN takes nothing in (`k = 0`).
 ///
 /// ```
 /// use rootfuse_attitude::blocks::{lowpass_gain, lowpass_gains_at_rates};
@@ -286,7 +289,7 @@ pub fn lowpass_gains_at_rates<T: Lane, const N: usize>(dt: T, rates: [T; N]) -> 
     let x = rates.map(|rate| dt * rate);
     let mut series = dt.simd_gt(T::zero());
     for (rate, x) in rates.iter().zip(&x) {
-        series = series & rate.simd_ge(T::zero()) & x.simd_le(T::from_f64(GAIN_SERIES_LIMIT));
+        series = series & rate.simd_gt(T::zero()) & x.simd_le(T::from_f64(GAIN_SERIES_LIMIT));
     }
     if series.all() {
         x.map(gain_series)
@@ -300,7 +303,7 @@ pub fn lowpass_gains_at_rates<T: Lane, const N: usize>(dt: T, rates: [T; N]) -> 
 pub fn lowpass_gain_at_rate<T: Lane>(dt: T, rate: T) -> T {
     let x = dt * rate;
     let in_range = dt.simd_gt(T::zero())
-        & rate.simd_ge(T::zero())
+        & rate.simd_gt(T::zero())
         & x.simd_le(T::from_f64(GAIN_HALVING_LIMIT));
     if in_range.all() {
         gain_by_halving(x)
