@@ -62,7 +62,7 @@
 //! | `mahony` | 196 | 344 | 188 |
 //! | `madgwick` | 192 | 328 | 184 |
 //! | `ekf` | 400 | 752 | 390 |
-//! | `sqrt-eskf` | 1412 | 2776 | 1378 |
+//! | `sqrt-eskf` | 1408 | 2768 | 1374 |
 //! | `complementary-reconstruction` | 336 | 624 | 326 |
 //! | `heading-pipeline` | 884 | 1568 | 848 |
 //! | `lsq-fusion` | 1296 | 2304 | 1254 |
@@ -75,7 +75,7 @@
 //! (exact for any recording length, where an `f32` counter would stop at 2²⁴), 28 B the last
 //! sample's flags (seven masks), and about 56 B the chunk's masking state and padding sample,
 //! amortised over the lanes. Parameters are per-lane coefficients (so channels with
-//! different parameters share a chunk): the flagship's 56 cost 224 B per channel in `f32x8`;
+//! different parameters share a chunk): the flagship's 55 cost 220 B per channel in `f32x8`;
 //! the parameter set as given (`params()`, one per chunk) adds its size divided by the lanes.
 //!
 //! Nothing is allocated per update: [`Chunk::update`] works on the SIMD state in place, and

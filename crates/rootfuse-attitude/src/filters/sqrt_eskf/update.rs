@@ -345,7 +345,8 @@ impl<T: Lane> SqrtEskf<T> {
         };
         // Covariance matching: where the innovations have been larger than predicted, the
         // measurement variance grows by that ratio (bits unchanged where disabled).
-        let adapt = self.coef.acc_adapt_window.simd_gt(zero);
+        // A window of 0 (off) is a rate of ∞.
+        let adapt = self.coef.adapt_rate.simd_lt(T::from_f64(f64::INFINITY));
         let scale = self
             .state
             .innovation_nis
