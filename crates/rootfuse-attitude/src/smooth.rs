@@ -197,6 +197,15 @@ fn pairs_for_scale(rec: &Recording) -> Recording {
     }
 }
 
+/// Why the filter skipped a sample whole.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Skipped {
+    /// Its time step (not finite, not positive, or beyond `max_dt`).
+    Step,
+    /// Its angular rate (not finite or beyond `max_gyr`).
+    Rate,
+}
+
 /// One pass: estimate and attitude covariance after each sample.
 type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 
@@ -235,6 +244,9 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     let mut forward: Pass = Vec::with_capacity(n);
     let mut backward: Pass = Vec::with_capacity(n);
     let mut bias = Vec::with_capacity(n);
+    // The steps the forward lane skipped whole (its `dt` or gyroscope rejected): the
+    // refinement by the gyroscope below takes the same readings and must not step on them.
+    let mut step_skipped: Vec<Option<Skipped>> = Vec::with_capacity(n);
     for k in 0..n {
         // Backward in time: arriving at sample i from sample i + 1 uses the rate measured
         // over [t_i, t_{i+1}] (sample i + 1's gyroscope), negated, over that interval, and
@@ -265,6 +277,14 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
         forward.push((q.lane(0), p_lane(0)));
         backward.push((q.lane(1), p_lane(1)));
         bias.push(filter.bias().lane(0));
+        let flags = filter.flags();
+        step_skipped.push(if flags.dt.test(0) {
+            Some(Skipped::Step)
+        } else if flags.gyr.test(0) {
+            Some(Skipped::Rate)
+        } else {
+            None
+        });
     }
     backward.reverse();
     if !nine_d {
@@ -319,7 +339,7 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
             .filter(|q| q.is_finite())
             .or(quat.first().copied());
         if let Some(start) = start {
-            refine_by_gyro(rec, &mut quat, &bias, start, tau);
+            refine_by_gyro(rec, &mut quat, &bias, &step_skipped, start, tau);
         }
     }
     Ok(Smoothed {
@@ -335,15 +355,21 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
 /// forward one's output. Each pass starts where the data have settled it, not at a first
 /// sample that may be an outlier (a filter that could not initialise on unusable first
 /// samples): the forward pass at `start` (the backward filter's estimate at sample 0), the
-/// backward pass at the forward pass's last state.
+/// backward pass at the forward pass's last state. `skipped[k]`: the filter skipped sample
+/// `k` whole, and why; its rate is not used.
 fn refine_by_gyro(
     rec: &Recording,
     quat: &mut [Quat<f64>],
     bias: &[Vec3<f64>],
+    skipped: &[Option<Skipped>],
     start: Quat<f64>,
     tau: f64,
 ) {
-    let n = quat.len().min(bias.len()).min(rec.gyr.len());
+    let n = quat
+        .len()
+        .min(bias.len())
+        .min(rec.gyr.len())
+        .min(skipped.len());
     if n < 2 {
         return;
     }
@@ -353,36 +379,57 @@ fn refine_by_gyro(
     forward.push(start);
     for k in 1..n {
         // Sample k's rate covers [t_{k-1}, t_k].
-        let next = gyro_step(rec, bias, k, 1.0, forward[k - 1], quat[k], &mut gain);
+        let next = gyro_step(
+            rec,
+            bias,
+            (k, skipped[k]),
+            1.0,
+            forward[k - 1],
+            quat[k],
+            &mut gain,
+        );
         forward.push(next);
     }
     quat[n - 1] = forward[n - 1];
     for k in (0..n - 1).rev() {
         // Backward, sample k + 1's rate, negated, covers [t_k, t_{k+1}].
-        quat[k] = gyro_step(rec, bias, k + 1, -1.0, quat[k + 1], forward[k], &mut gain);
+        let step = (k + 1, skipped[k + 1]);
+        quat[k] = gyro_step(rec, bias, step, -1.0, quat[k + 1], forward[k], &mut gain);
     }
 }
 
 /// One step of [`refine_by_gyro`]'s passes: `from` turned by sample `k`'s rate (minus its
 /// bias, times `sign`) over its `dt`, then the fraction `1 − exp(−dt/tau)` of the earth-frame
 /// rotation toward `to`, taken as twice the vector part of `to ⊗ moved*` (the rotation vector
-/// to within `θ²/24` of the angle `θ`, and the step is a small fraction of it). A rate or
-/// step that is not usable (not finite, `dt ≤ 0`) neither turns nor corrects: the estimate
-/// is held.
+/// to within `θ²/24` of the angle `θ`, and the step is a small fraction of it). A sample the
+/// filter skipped (`skipped`), or whose rate or step is not usable (not finite, `dt ≤ 0`, a
+/// turn that is not finite), does not turn the estimate: it is held over a sample's step (a
+/// rate beyond `max_gyr`, a repeated time), and after a gap (a step beyond `max_dt`), over
+/// which the orientation may have changed by anything, the pass starts again at `to`.
 fn gyro_step(
     rec: &Recording,
     bias: &[Vec3<f64>],
-    k: usize,
+    (k, skipped): (usize, Option<Skipped>),
     sign: f64,
     from: Quat<f64>,
     to: Quat<f64>,
     gain: &mut LowPassGain<f64>,
 ) -> Quat<f64> {
     let (w, dt) = (rec.gyr[k] - bias[k], rec.dt(k));
-    if !(w.is_finite() && dt.is_finite() && dt > 0.0) {
+    let stepped = dt.is_finite() && dt > 0.0;
+    match skipped {
+        // Skipped for a step that is positive: one beyond `max_dt`, a gap.
+        Some(Skipped::Step) if stepped => return to,
+        Some(_) => return from,
+        None => {}
+    }
+    if !(w.is_finite() && stepped) {
         return from;
     }
     let moved = integrate_gyro(from, w * sign, dt);
+    if !moved.is_finite() {
+        return from;
+    }
     let d = to * moved.conj();
     let phi = d.vector() * (2.0_f64.copysign(d.w));
     if phi.is_finite() {

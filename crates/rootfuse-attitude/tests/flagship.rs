@@ -434,6 +434,40 @@ fn smoother_errors_and_bad_samples() {
     assert!(err < 2.0, "smoothed error {err:.3}° with bad samples");
 }
 
+/// A sample the filter skips whole (a gyroscope spike beyond `max_gyr`, a step beyond
+/// `max_dt`) is skipped by the smoother's refinement by the gyroscope too: the smoothed
+/// estimates stay where those of the clean recording are, as the online ones do. Before,
+/// the refinement turned by the spike (tens of degrees for seconds) or by the gap's rate
+/// over 30 s.
+#[test]
+fn the_smoothers_refinement_skips_what_the_filter_skipped() {
+    use rootfuse_attitude::smooth::smooth_spec;
+    let clean = scenario("slow-rotation", 5, 20.0, 100.0).unwrap();
+    let spec = FilterSpec::new("flagship").unwrap();
+    let reference = smooth_spec(&clean, &spec, true).unwrap().quat;
+    let mut spike = clean.clone();
+    spike.gyr[700] = Vec3::new(1000.0, 0.0, 0.0);
+    let mut gap = clean.clone();
+    for t in &mut gap.t[1200..] {
+        *t += 30.0;
+    }
+    for (name, rec) in [("spike", &spike), ("gap", &gap)] {
+        let out = smooth_spec(rec, &spec, true).unwrap();
+        let worst = out
+            .quat
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| a.angle_to(*b).to_degrees())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 1.0,
+            "{name}: smoothed estimates {worst:.3}° from the clean run's"
+        );
+        let skipped = out.rejections.gyr[0] + out.rejections.dt[0];
+        assert_eq!(skipped, 1, "{name}: the one sample is skipped and counted");
+    }
+}
+
 type F64x2 = rootfuse_lane::wide::f64x2;
 
 /// The flagship whose forward lane (0) reports a NaN covariance at chosen updates: the
