@@ -76,6 +76,76 @@ fn utf16_and_utf32_are_refused_by_name() {
     }
 }
 
+/// Binary files given to the CSV reader are named for what they are (their NUL bytes once
+/// made them "UTF-16"), with what to do instead.
+#[test]
+fn binary_formats_are_refused_by_name() {
+    let dir = temp_dir("binary");
+    for (name, head, format, advice) in [
+        (
+            "fleet.parquet",
+            &b"PAR1\x15\x04\x15\x00"[..],
+            "a Parquet file",
+            "rootfuse run",
+        ),
+        (
+            "fleet.arrow",
+            b"ARROW1\x00\x00",
+            "an Arrow IPC file",
+            "rootfuse.arrow",
+        ),
+        (
+            "fleet.arrows",
+            b"\xFF\xFF\xFF\xFF\x10\x00",
+            "an Arrow IPC stream",
+            "rootfuse run",
+        ),
+        ("rec.csv.gz", b"\x1F\x8B\x08\x00\x00", "gzip", "gunzip"),
+        ("rec.csv.zst", b"\x28\xB5\x2F\xFD\x00", "zstd", "zstd -d"),
+        (
+            "rec.xlsx",
+            b"PK\x03\x04\x14\x00",
+            "zip archive",
+            "save the sheet as CSV",
+        ),
+    ] {
+        let p = dir.join(name);
+        std::fs::write(&p, head).unwrap();
+        let e = read_csv(&p).unwrap_err();
+        assert!(matches!(e, ReadError::NotText { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains(format)
+                && msg.contains(advice)
+                && msg.contains(name)
+                && !msg.contains("UTF"),
+            "{msg}"
+        );
+    }
+}
+
+/// A CSV with a `device` column holds several devices' rows, which one recording cannot: the
+/// time error says so.
+#[test]
+fn a_csv_fleet_is_named_in_the_time_error() {
+    let dir = temp_dir("csv-fleet");
+    let text =
+        "device,t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,0,9.8\n0,0.01,0,0,0,0,0,9.8\n1,0,0,0,0,0,0,9.8\n";
+    let e = read_csv(write(&dir, "fleet.csv", text)).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        matches!(e, ReadError::NonMonotonicTime { .. })
+            && msg.contains("line 4")
+            && msg.contains("Parquet or Arrow"),
+        "{msg}"
+    );
+    let single = "t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9.8\n0,0,0,0,0,0,9.8\n";
+    let msg = read_csv(write(&dir, "one.csv", single))
+        .unwrap_err()
+        .to_string();
+    assert!(!msg.contains("device"), "{msg}");
+}
+
 #[test]
 fn empty_cells_are_missing_values() {
     let dir = temp_dir("empty");

@@ -90,6 +90,17 @@ pub enum ReadError {
         /// The encoding recognised (`UTF-16 little-endian`, …).
         encoding: &'static str,
     },
+    /// The file is a binary format its first bytes name (Parquet, Arrow, a compressed or
+    /// zipped file), not CSV text.
+    #[error("{place}: this is {format}, not CSV text: {what_to_do}")]
+    NotText {
+        /// The file.
+        place: Place,
+        /// What its first bytes say it is (`a Parquet file`, …).
+        format: &'static str,
+        /// What to do instead.
+        what_to_do: &'static str,
+    },
     /// The file has no header line.
     #[error("{place}: empty file (no header)")]
     Empty {
@@ -139,7 +150,7 @@ pub enum ReadError {
         value: f64,
     },
     /// A time stamp does not exceed the previous one.
-    #[error("{place}: time {value} does not increase (previous {previous})")]
+    #[error("{place}: time {value} does not increase (previous {previous}){hint}")]
     NonMonotonicTime {
         /// The cell.
         place: Place,
@@ -147,6 +158,9 @@ pub enum ReadError {
         value: f64,
         /// The previous sample's time.
         previous: f64,
+        /// What the file suggests, appended to the message (empty, or `; …`): a CSV with a
+        /// `device` column holds a fleet, which CSV cannot.
+        hint: &'static str,
     },
     /// An IMU reading (gyroscope, accelerometer, magnetometer) is empty, NaN or infinite.
     ///
@@ -210,6 +224,7 @@ impl ReadError {
             ReadError::Io { place, .. }
             | ReadError::Csv { place, .. }
             | ReadError::Encoding { place, .. }
+            | ReadError::NotText { place, .. }
             | ReadError::Empty { place }
             | ReadError::MissingColumn { place, .. }
             | ReadError::DuplicateColumn { place }

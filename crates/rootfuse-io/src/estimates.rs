@@ -71,6 +71,7 @@ pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
                 place: table.place(line, cols[0]),
                 value: v[0],
                 previous,
+                hint: "",
             });
         }
         if let Some(norm) = not_unit(&[v[1], v[2], v[3], v[4]]) {

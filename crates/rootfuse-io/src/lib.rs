@@ -7,7 +7,8 @@
 //! # Format read
 //! One header line, then one row per sample. The delimiter is found from the header: comma,
 //! semicolon or tab (where it is not a comma, a decimal comma `0,25` is read too). UTF-8, with
-//! or without a byte-order mark; UTF-16 and UTF-32 are refused by name. Columns are found by
+//! or without a byte-order mark; UTF-16 and UTF-32 are refused by name, as are Parquet, Arrow and
+//! compressed or zipped files (by their first bytes). Columns are found by
 //! name, so their order is free:
 //! - required: `t` (strictly increasing), `gx,gy,gz` (angular rate, sensor frame),
 //!   `ax,ay,az` (specific force, sensor frame);

@@ -240,6 +240,11 @@ impl<R: std::io::Read> CsvBlocks<R> {
                 place: table.place(line, tc),
                 value: t,
                 previous: self.previous_t,
+                hint: if table.find("device").is_some() {
+                    "; the file has a `device` column, but a CSV file is one recording: write a fleet as Parquet or Arrow (read by device), or one CSV file per device"
+                } else {
+                    ""
+                },
             });
         }
         let r = &layout.required;

@@ -52,6 +52,35 @@ impl Dialect {
 /// Longest header line read before a file is judged not to be CSV.
 const MAX_HEADER: u64 = 1 << 20;
 
+/// A binary format a file's first bytes name, and what to do with such a file: checked before
+/// the text encodings, whose NUL-byte test would call any binary file UTF-16.
+fn binary_format(head: &[u8]) -> Option<(&'static str, &'static str)> {
+    const COLUMNAR: &str = "CSV readers (`rootfuse eval`, `read_csv`) do not read it; `rootfuse run` reads Parquet and Arrow files by their extension (.parquet, .arrow, .arrows, .feather), and Python by `rootfuse.arrow`";
+    const COMPRESSED: &str = "decompress it first (e.g. `gunzip`, `zstd -d`, `xz -d`)";
+    let formats: [(&[u8], &str, &str); 8] = [
+        (b"PAR1", "a Parquet file", COLUMNAR),
+        (b"ARROW1", "an Arrow IPC file", COLUMNAR),
+        (b"\xFF\xFF\xFF\xFF", "an Arrow IPC stream", COLUMNAR),
+        (b"\x1F\x8B", "a gzip-compressed file", COMPRESSED),
+        (b"\x28\xB5\x2F\xFD", "a zstd-compressed file", COMPRESSED),
+        (b"\xFD7zXZ\x00", "an xz-compressed file", COMPRESSED),
+        (
+            b"PK\x03\x04",
+            "a zip archive (or a spreadsheet workbook)",
+            "unzip it, or save the sheet as CSV",
+        ),
+        (
+            b"\x89HDF",
+            "an HDF5 file",
+            "export the data as CSV, Parquet or Arrow",
+        ),
+    ];
+    formats
+        .into_iter()
+        .find(|(magic, _, _)| head.starts_with(magic))
+        .map(|(_, format, what)| (format, what))
+}
+
 /// The encoding a file's first bytes give away, when it is not UTF-8 (which may start with a
 /// byte-order mark) or ASCII.
 fn foreign_encoding(head: &[u8]) -> Option<&'static str> {
@@ -108,6 +137,13 @@ impl<R: Read> Table<R> {
             .take(MAX_HEADER)
             .read_until(b'\n', &mut line)
             .map_err(|e| ReadError::io(file, e))?;
+        if let Some((format, what_to_do)) = binary_format(&line) {
+            return Err(ReadError::NotText {
+                place: Place::file(file),
+                format,
+                what_to_do,
+            });
+        }
         if let Some(encoding) = foreign_encoding(&line) {
             return Err(ReadError::Encoding {
                 place: Place::file(file),
