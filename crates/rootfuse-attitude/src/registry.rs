@@ -55,7 +55,16 @@ impl fmt::Display for RegistryError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::UnknownFilter { name, valid } => {
-                write!(f, "unknown filter `{name}` (valid: {})", valid.join(", "))
+                write!(f, "unknown filter `{name}`")?;
+                let names = core::iter::once("flagship").chain(valid.iter().copied());
+                if let Some(near) = nearest_name(name, names) {
+                    write!(f, ": did you mean `{near}`?")?;
+                }
+                write!(
+                    f,
+                    " (valid: flagship, the same as sqrt-eskf; {})",
+                    valid.join(", ")
+                )
             }
             Self::Param(e) => e.fmt(f),
             Self::NoDof { filter, with_dof } => write!(
@@ -68,6 +77,34 @@ impl fmt::Display for RegistryError {
     }
 }
 impl std::error::Error for RegistryError {}
+
+/// The name among `names` that `given` is most likely a misspelling of: the same but for case,
+/// or at most a third of its letters (at least one) away by edits.
+fn nearest_name<'a>(given: &str, names: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let given = given.trim().to_ascii_lowercase();
+    let limit = (given.chars().count() / 3).max(1);
+    names
+        .map(|n| (edit_distance(&given, n), n))
+        .filter(|&(d, _)| d <= limit)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, n)| n)
+}
+
+/// Levenshtein distance between `a` and `b`, by characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: std::vec::Vec<char> = b.chars().collect();
+    let mut row: std::vec::Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let substitute = diagonal + usize::from(ca != cb);
+            diagonal = row[j + 1];
+            row[j + 1] = substitute.min(row[j] + 1).min(diagonal + 1);
+        }
+    }
+    row[b.len()]
+}
 impl From<ParamError> for RegistryError {
     fn from(e: ParamError) -> Self {
         Self::Param(e)

@@ -288,9 +288,23 @@ fn registry_names_and_errors() {
     );
     let e = FilterSpec::new("kalman").unwrap_err().to_string();
     assert!(
-        e.contains("unknown filter `kalman`") && e.contains("mahony"),
+        e.contains("unknown filter `kalman`")
+            && e.contains("mahony")
+            && !e.contains("did you mean"),
         "{e}"
     );
+    // A misspelling or another case is answered with the name meant; the alias is listed.
+    for (given, meant) in [
+        ("Flagship", "flagship"),
+        ("madgwik", "madgwick"),
+        ("sqrt_eskf", "sqrt-eskf"),
+    ] {
+        let e = FilterSpec::new(given).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("did you mean `{meant}`?")) && e.contains("valid: flagship"),
+            "{e}"
+        );
+    }
     let mut spec = FilterSpec::new("mahony").unwrap();
     assert!(spec.set("kp=2").is_ok() && spec.get("kp") == Some(2.0));
     assert!(

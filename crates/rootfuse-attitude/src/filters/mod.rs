@@ -252,6 +252,7 @@ impl core::fmt::Display for StateError {
                     value,
                     min,
                     max,
+                    ..
                 } = e;
                 write!(
                     f,
@@ -289,6 +290,7 @@ fn within<T: Lane>(
             value: value.extract(i).into(),
             min,
             max,
+            unit: "",
         })),
         None => Ok(()),
     }

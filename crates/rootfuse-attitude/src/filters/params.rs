@@ -320,6 +320,8 @@ pub struct InvalidParam {
     pub min: f64,
     /// Largest accepted value (inclusive).
     pub max: f64,
+    /// The parameter's unit (`"rad/s"`, …; `"1"` or empty for none).
+    pub unit: &'static str,
 }
 
 impl core::fmt::Display for InvalidParam {
@@ -329,8 +331,13 @@ impl core::fmt::Display for InvalidParam {
             value,
             min,
             max,
+            unit,
         } = self;
-        write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")
+        write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")?;
+        match *unit {
+            "" | "1" => Ok(()),
+            unit => write!(f, " {unit}"),
+        }
     }
 }
 
@@ -556,7 +563,7 @@ macro_rules! params_with_screening {
                     let value = $crate::filters::ParamValue::to_f64(self.$field);
                     if !($min..=$max).contains(&value) {
                         return Err($crate::filters::InvalidParam {
-                            name: stringify!($field), value, min: $min, max: $max,
+                            name: stringify!($field), value, min: $min, max: $max, unit: $unit,
                         });
                     }
                 } )*
