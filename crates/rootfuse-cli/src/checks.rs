@@ -1,6 +1,7 @@
 //! What `rootfuse run` says about each input once it has run: the units its data look like
-//! (a warning, an error under `--strict`) and a sensor whose every sample or correction the
-//! filter skipped (always an error: the estimate would be silently wrong).
+//! (an error for time and the gyroscope unless their unit was declared, a warning for the
+//! others; every one an error under `--strict`) and a sensor whose every sample or correction
+//! the filter skipped (always an error: the estimate would be silently wrong).
 use rootfuse_attitude::units::{Sensor, UnitCheck, UnitFinding, Units};
 use rootfuse_attitude::{Recording, Vec3};
 use rootfuse_batch::{FleetBlock, RejectionTotals};
@@ -132,6 +133,22 @@ impl InputChecks {
             let line = format!("{what}: {}", advice(f));
             if self.strict {
                 verdict.error = Some(format!("{line} (--strict)"));
+                return verdict;
+            }
+            // Time and angular rate in another unit turn every estimate wrong, whatever the
+            // filter: that is an error unless the unit was declared (then the readings are
+            // taken as declared, and the finding stays a warning).
+            let decisive = matches!(f.sensor, Sensor::Time | Sensor::Gyroscope) && !f.dead;
+            if decisive && !self.units.is_declared(f.sensor) {
+                let subject = match f.sensor {
+                    Sensor::Time => "time stamps in the wrong unit make",
+                    _ => "a gyroscope in the wrong unit makes",
+                };
+                verdict.error = Some(format!(
+                    "{line} ({subject} every estimate wrong, so this is an error; if the readings are in {unit} after all, say so: --units {key}={unit})",
+                    key = f.sensor.key(),
+                    unit = f.declared,
+                ));
                 return verdict;
             }
             verdict.warnings.push(line);

@@ -6,8 +6,8 @@ use rootfuse_attitude::registry::{Assignment, FilterSpec};
 /// Which filter, with which parameters.
 #[derive(Args, Debug)]
 pub struct FilterArgs {
-    /// Filter name (see `rootfuse filters`).
-    #[arg(long)]
+    /// Filter name (see `rootfuse filters`); the flagship (`sqrt-eskf`) unless given.
+    #[arg(long, default_value = "flagship")]
     pub filter: String,
     /// Parameter override `key=value` (repeatable, each parameter once; `rootfuse filters`
     /// lists them with units, ranges and kinds: a whole number or a switch refuses fractions).

@@ -66,7 +66,9 @@ pub struct RunArgs {
     /// `mag=uT|nT|G|mG`, or a factor to the filters' unit for raw counts (`acc=0.000598`);
     /// sensors left out are in the filters' units. Each input's data are checked against
     /// these units: a sensor whose readings look like another unit is named with the option
-    /// that declares it.
+    /// that declares it. For time and the gyroscope that is an error unless their unit is
+    /// given here (a wrong one makes every estimate wrong; `gyro=rad/s` says the readings are
+    /// rad/s after all), for the accelerometer and magnetometer a warning.
     #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
     units: Units,
     /// Make every warning about an input an error (exit 2, no estimate written): readings that
@@ -74,7 +76,9 @@ pub struct RunArgs {
     /// values, dropped packets, are kept and the filter skips them: the whole sample for the
     /// gyroscope, that correction for the accelerometer or magnetometer, counted in the summary
     /// and in `--flags`). A sensor whose every sample or correction the filter skipped is an
-    /// error either way.
+    /// error either way (a file without magnetometer columns is not: under a filter's 9D
+    /// default it runs with a note that every magnetometer correction is skipped, and
+    /// `--dof 9` makes it an error).
     #[arg(long)]
     strict: bool,
     /// Per-device parameters: a CSV, Parquet or Arrow table with a `device` column (as the

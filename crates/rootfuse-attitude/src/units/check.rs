@@ -471,6 +471,14 @@ impl UnitCheck {
                             "the {what} is {} {si}, not within {lo}–{hi} {si}",
                             short(median)
                         )
+                    } else if declared.name.is_none() {
+                        // A factor declared for raw counts: the reading, then what it became.
+                        format!(
+                            "the {what} is {} counts × {} = {} {si}, not within {lo}–{hi} {si}",
+                            short(median),
+                            declared.factor,
+                            short(median * declared.factor)
+                        )
                     } else {
                         format!(
                             "the {what} is {} {declared} ({} {si}), not within {lo}–{hi} {si}",

@@ -315,16 +315,20 @@ impl std::error::Error for UnitsError {}
 /// factor to the filters' units (s, rad/s, m/s², µT, the default).
 ///
 /// Read from a list like `time=ms,gyro=deg/s,acc=g,mag=nT` (sensors left out keep the
-/// filters' unit); its text form lists every sensor.
+/// filters' unit); its text form lists every sensor. Each sensor remembers whether its unit
+/// was given ([`is_declared`](Self::is_declared)): `gyro=rad/s` is the default's factor, but
+/// a statement that the readings are in rad/s.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Units {
     units: [Unit; 4],
+    declared: [bool; 4],
 }
 
 impl Default for Units {
     fn default() -> Self {
         Self {
             units: Sensor::ALL.map(Sensor::si),
+            declared: [false; 4],
         }
     }
 }
@@ -335,9 +339,23 @@ impl Units {
         self.units[sensor as usize]
     }
 
-    /// Sets the unit of its sensor.
+    /// Sets the unit of its sensor (which then counts as declared).
     pub fn set(&mut self, unit: Unit) {
         self.units[unit.sensor as usize] = unit;
+        self.declared[unit.sensor as usize] = true;
+    }
+
+    /// True when the unit of `sensor` was given (by [`set`](Self::set) or in the list read),
+    /// not left at the filters' own by default.
+    ///
+    /// ```
+    /// use rootfuse_attitude::units::{Sensor, Units};
+    /// let units: Units = "gyro=rad/s".parse().unwrap();
+    /// assert!(units.is_declared(Sensor::Gyroscope) && units.get(Sensor::Gyroscope).is_si());
+    /// assert!(!units.is_declared(Sensor::Time));
+    /// ```
+    pub fn is_declared(&self, sensor: Sensor) -> bool {
+        self.declared[sensor as usize]
     }
 
     /// True when every unit is the filters' own (reading converts nothing).
