@@ -560,6 +560,27 @@ impl Steps {
         }
     }
 
+    /// These steps as the next call of a stream whose last sample time was `previous` (s):
+    /// sample times then take `t[0] − previous` as the step before their first sample;
+    /// steps given as `dt` are kept. Also returns the last sample time for the call after
+    /// (`None` where the steps are not times: `dt` ends a stream).
+    pub fn continuing(self, previous: Option<f64>) -> (Self, Option<f64>) {
+        match (self, previous) {
+            (Self::Times(t), Some(p)) if !t.is_empty() => {
+                let end = t.last().copied();
+                let steps = (0..t.len())
+                    .map(|i| t[i] - if i == 0 { p } else { t[i - 1] })
+                    .collect();
+                (Self::PerSample(steps), end)
+            }
+            (Self::Times(t), previous) => {
+                let end = t.last().copied().or(previous);
+                (Self::Times(t), end)
+            }
+            (steps, _) => (steps, None),
+        }
+    }
+
     /// The same steps, borrowed.
     pub fn borrowed(&self) -> StepsRef<'_> {
         match self {

@@ -384,7 +384,8 @@ fn write_error(e: rootfuse_io::WriteError) -> PyErr {
 ///
 /// What `read_estimates` would refuse is not written (ValueError naming row, line and
 /// column): a time that is not finite or does not increase, a quaternion that is not finite
-/// or not of unit norm. `extra` columns may hold NaN (read back as NaN).
+/// or not of unit norm. `extra` columns may hold NaN (read back as NaN); integer and bool
+/// arrays (the `flags` of `update_batch`) are written as their numbers.
 #[pyfunction]
 #[pyo3(signature = (path, t, quat, extra=None))]
 pub fn write_estimates(
@@ -403,6 +404,20 @@ pub fn write_estimates(
     if let Some(extra) = extra {
         for (k, v) in extra.iter() {
             let name: String = k.extract()?;
+            // Integer and bool columns (`update_batch`'s uint8 `flags`) are written as numbers
+            // too: exact below 2⁵³.
+            let v = if v.cast::<numpy::PyUntypedArray>().is_ok()
+                && matches!(
+                    v.getattr("dtype")?
+                        .getattr("kind")?
+                        .extract::<String>()?
+                        .as_str(),
+                    "i" | "u" | "b"
+                ) {
+                v.call_method1("astype", ("float64",))?
+            } else {
+                v
+            };
             let values = vector(&v, &name)?;
             columns.push((name, values));
         }

@@ -12,7 +12,7 @@ use rootfuse_attitude::filters::{ParamKind, Rejections, StateError};
 use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
 use rootfuse_attitude::{Dof, ImuSample, Lane, Mask, OrientationFilter, Recording, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
-use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::sync::{Mutex, MutexGuard, PoisonError, TryLockError};
 
 /// Parses `precision` ("f32" or "f64").
 pub fn precision(text: &str) -> PyResult<Precision> {
@@ -207,6 +207,9 @@ pub struct Filter {
     precision: Precision,
     /// The filter, locked by the call using it (`update_batch` holds it without the GIL).
     state: Mutex<State>,
+    /// The last sample time of the last `update_batch(t=...)`, s: the next call with `t`
+    /// continues from it. Locked only while `state` is held.
+    last_time: Mutex<Option<f64>>,
 }
 
 /// What a second thread gets instead of pyo3's "Already borrowed".
@@ -219,6 +222,7 @@ impl Filter {
             spec,
             precision,
             state: Mutex::new(state),
+            last_time: Mutex::new(None),
         }
     }
     fn fresh(spec: &FilterSpec, precision: Precision) -> State {
@@ -399,7 +403,15 @@ impl Filter {
         let d = PyDict::new(py);
         for p in self.spec.kind().params() {
             if let Some(v) = self.spec.get(p.name) {
-                d.set_item(p.name, v)?;
+                // Whole-number kinds as Python ints, so that `Filter(name, **f.params)`
+                // takes them back (`dof=9.0` is refused, as a fraction would be).
+                let whole =
+                    !matches!(p.kind, ParamKind::Real) && v.fract() == 0.0 && v.abs() < 1e15;
+                if whole {
+                    d.set_item(p.name, v as i64)?;
+                } else {
+                    d.set_item(p.name, v)?;
+                }
             }
         }
         Ok(d)
@@ -411,8 +423,11 @@ impl Filter {
     /// for 6D data (a 9D filter then skips its magnetometer correction at every sample and
     /// flags it). Exactly one of `dt` (s: a number, or `(N,)` per sample: the step before
     /// each sample) and `t` (s, `(N,)`: the step before sample i is `t[i] − t[i−1]`, before
-    /// sample 0 `t[1] − t[0]`, as `rootfuse run` does). Input is rounded to the filter's
-    /// precision once.
+    /// sample 0 `t[1] − t[0]`, as `rootfuse run` does). A call with `t` right after a call
+    /// with `t` continues its times: the step before its first sample is `t[0]` minus the
+    /// last time of that call, so a stream fed in chunks runs as the whole array would (a
+    /// call with `dt`, `update()` and `reset()` end the stream). Input is rounded to the
+    /// filter's precision once.
     ///
     /// Returns a dict of float64 arrays: `quat` `(N, 4)` `[w, x, y, z]` after each sample;
     /// `bias` `(N, 3)` gyro-bias estimate, rad/s (zeros for filters without one);
@@ -437,6 +452,13 @@ impl Filter {
         let (gyr, acc, mag, n) = imu_arrays(gyr, acc, mag)?;
         let steps = Steps::parse(dt, t, n)?;
         let mut guard = self.lock()?;
+        let mut last_time = self
+            .last_time
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let (steps, end) = steps.continuing(*last_time);
+        *last_time = end;
+        drop(last_time);
         let state: &mut State = &mut guard;
         let with_cov = covariance && has_covariance(state);
         let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
@@ -476,6 +498,10 @@ impl Filter {
             _ => ImuSample::six_d(Vec3::from_f64(g), Vec3::from_f64(a)),
         };
         let mut state = self.lock()?;
+        *self
+            .last_time
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = None;
         Ok(with_state!(&mut *state, f => step(f, &s, dt)))
     }
 
@@ -624,7 +650,12 @@ impl Filter {
     /// Back to the state just after construction (same parameters and precision).
     fn reset(&self) -> PyResult<()> {
         let fresh = Self::fresh(&self.spec, self.precision);
-        *self.lock()? = fresh;
+        let mut state = self.lock()?;
+        *state = fresh;
+        *self
+            .last_time
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = None;
         Ok(())
     }
 

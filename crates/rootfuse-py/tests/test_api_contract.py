@@ -197,6 +197,11 @@ def test_write_estimates_refuses_what_read_estimates_refuses_and_every_column_re
     np.testing.assert_array_equal(back["bx"], bx)
     np.testing.assert_array_equal(back["p_xx"], p_xx)
     np.testing.assert_array_equal(back["flags"], flags)
+    # The uint8 flags update_batch returns are written as they are (and bool columns too).
+    rf.write_estimates(path, t, Q, {"flags": flags.astype(np.uint8), "rest": np.arange(N) % 2 == 0})
+    back = rf.read_estimates(path)
+    np.testing.assert_array_equal(back["flags"], flags)
+    np.testing.assert_array_equal(back["rest"], (np.arange(N) % 2 == 0).astype(float))
 
 
 # (f) Messages that name the right argument; defaults that help() can show.

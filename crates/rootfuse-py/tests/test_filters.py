@@ -146,6 +146,46 @@ def test_dt_forms_agree():
     assert c["quat"].shape == (n, 4)
 
 
+@pytest.mark.parametrize("chunk", [1, 2, 7, 500])
+def test_sample_times_in_chunks_continue_the_stream(chunk):
+    """A stream fed to update_batch in chunks of `t` runs as the whole array does (the step
+    before a chunk's first sample is taken from the chunk before); the very first sample of
+    a one-sample chunk has no step and is skipped, as one sample alone would be."""
+    rec = rf.simulate("irregular-dt", seed=1, duration_s=20.0)
+    whole = rf.Filter("flagship").update_batch(rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
+    f = rf.Filter("flagship")
+    parts = [
+        f.update_batch(rec["gyr"][i:i + chunk], rec["acc"][i:i + chunk], rec["mag"][i:i + chunk], t=rec["t"][i:i + chunk])
+        for i in range(0, len(rec["t"]), chunk)
+    ]
+    quat = np.concatenate([p["quat"] for p in parts])
+    flags = np.concatenate([p["flags"] for p in parts])
+    if chunk == 1:
+        # The whole array takes t[1] - t[0] before sample 0; a stream of single samples
+        # cannot know it: sample 0 alone is skipped (flag dt), every later one steps.
+        # Sample 0's estimate is then the filter's state before any sample: scored from 1 on.
+        assert flags[0] & rf.FLAG_DT and not np.any(flags[1:] & rf.FLAG_DT)
+        later = dict(rec, use=np.arange(len(rec["t"])) > 0)
+        assert rf.rmse(quat, later)["total"] < 1.1 * rf.rmse(whole["quat"], later)["total"]
+    else:
+        np.testing.assert_array_equal(quat, whole["quat"])
+        np.testing.assert_array_equal(flags, whole["flags"])
+    # dt ends the stream: the next call with t starts again from its own first step.
+    f.update_batch(rec["gyr"][:3], rec["acc"][:3], rec["mag"][:3], 0.01)
+    again = f.update_batch(rec["gyr"][:1], rec["acc"][:1], rec["mag"][:1], t=rec["t"][:1])
+    assert again["flags"][0] & rf.FLAG_DT
+
+
+def test_params_round_trip():
+    """Filter(name, **f.params) rebuilds the same filter: whole-number parameters (dof,
+    counts, switches) come back as ints."""
+    for name in ["mahony", "flagship"]:
+        f = rf.Filter(name, dof=6)
+        p = f.params
+        assert isinstance(p["dof"], int) and p["dof"] == 6
+        assert rf.Filter(name, **p).params == p
+
+
 def test_filters_listing_has_units():
     listing = rf.filters()
     assert {"sqrt-eskf", "mahony", "madgwick", "ekf", "gyro"} <= {f["name"] for f in listing}
