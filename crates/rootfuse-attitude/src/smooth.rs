@@ -50,7 +50,7 @@
 //! ```
 
 use crate::blocks::{LowPassGain, integrate_gyro, turn_in_earth};
-use crate::filters::Rejections;
+use crate::filters::{Rejections, SampleFlags};
 use crate::registry::FilterSpec;
 use crate::{Dof, ImuSample, Lane, OrientationFilter, Quat, Recording, Vec3};
 use rootfuse_lane::Mask;
@@ -206,6 +206,19 @@ enum Skipped {
     Rate,
 }
 
+impl Skipped {
+    /// Why lane 0 of a sample's `flags` was skipped whole, if it was.
+    fn of_lane_0(flags: &SampleFlags<f64x2>) -> Option<Self> {
+        if flags.dt.test(0) {
+            Some(Self::Step)
+        } else if flags.gyr.test(0) {
+            Some(Self::Rate)
+        } else {
+            None
+        }
+    }
+}
+
 /// One pass: estimate and attitude covariance after each sample.
 type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 
@@ -277,14 +290,7 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
         forward.push((q.lane(0), p_lane(0)));
         backward.push((q.lane(1), p_lane(1)));
         bias.push(filter.bias().lane(0));
-        let flags = filter.flags();
-        step_skipped.push(if flags.dt.test(0) {
-            Some(Skipped::Step)
-        } else if flags.gyr.test(0) {
-            Some(Skipped::Rate)
-        } else {
-            None
-        });
+        step_skipped.push(Skipped::of_lane_0(&filter.flags()));
     }
     backward.reverse();
     if !nine_d {

@@ -91,6 +91,40 @@ pub fn spec_from(
     Ok(spec)
 }
 
+/// A `UserWarning` where most samples of a call of at least ten were skipped whole for their
+/// time step (flag 1) or their gyroscope (flag 2): sample times given as `dt`, times in ms, a
+/// gyroscope in °/s. The estimates are then mostly the start's; the flags say which.
+pub fn warn_if_mostly_skipped(py: Python<'_>, call: &str, flags: &[u8]) -> PyResult<()> {
+    let n = flags.len();
+    let count = |bit: u8| flags.iter().filter(|&&f| f & bit != 0).count();
+    let (dt, gyr) = (count(1), count(2));
+    let advice = if n < 10 {
+        None
+    } else if 2 * dt > n {
+        Some(format!(
+            "{call}: {dt} of {n} samples were skipped for their time step (flag 1): `dt` is the step before each sample in s (sample times go to `t=`), `t` is in s (divide ms by 1000), and a step beyond `max_dt` (1 s by default) is a gap"
+        ))
+    } else if 2 * gyr > n {
+        Some(format!(
+            "{call}: {gyr} of {n} samples were skipped for their gyroscope (flag 2): beyond `max_gyr` (35 rad/s by default) or not finite; a gyroscope in deg/s needs np.radians"
+        ))
+    } else {
+        None
+    };
+    match advice {
+        Some(message) => {
+            let message = std::ffi::CString::new(message).unwrap_or_default();
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                &message,
+                1,
+            )
+        }
+        None => Ok(()),
+    }
+}
+
 /// Lane 0's counters.
 fn totals<T: Lane>(r: &Rejections<T>) -> RejectionTotals {
     RejectionTotals::of_lane(r, 0)
@@ -436,7 +470,9 @@ impl Filter {
     /// a sample); `flags` `(N,)` uint8 per sample: 1 dt, 2 gyroscope (whole sample skipped),
     /// 4 accelerometer, 8 magnetometer (correction skipped), 16 gated by the filter, 32 at
     /// rest, 64 magnetic disturbance. NaN/inf inside the arrays are not errors: that sample
-    /// (or correction) is skipped and flagged.
+    /// (or correction) is skipped and flagged. Where most samples of a call (ten or more)
+    /// were skipped whole for their time step or gyroscope, a `UserWarning` says the likely
+    /// cause (sample times given as `dt`, times in ms, a gyroscope in deg/s).
     #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None, covariance=true))]
     #[allow(clippy::too_many_arguments)]
     fn update_batch<'py>(
@@ -473,6 +509,7 @@ impl Filter {
                 PyArray1::from_vec(py, series.cov).reshape([n, 3, 3])?,
             )?;
         }
+        warn_if_mostly_skipped(py, "update_batch", &series.flags)?;
         out.set_item("flags", PyArray1::from_vec(py, series.flags))?;
         Ok(out)
     }
