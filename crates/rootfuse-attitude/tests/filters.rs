@@ -305,6 +305,19 @@ fn registry_names_and_errors() {
             "{e}"
         );
     }
+    // A value out of range names the parameter's range and unit (none for a pure number).
+    let e = FilterSpec::new("flagship")
+        .unwrap()
+        .set("max_gyr=1e9")
+        .unwrap_err()
+        .to_string();
+    assert!(e.ends_with("is outside [0.001, 100000] rad/s"), "{e}");
+    let e = FilterSpec::new("flagship")
+        .unwrap()
+        .set("gyr_scale_error=-1")
+        .unwrap_err()
+        .to_string();
+    assert!(e.ends_with(']'), "{e}");
     let mut spec = FilterSpec::new("mahony").unwrap();
     assert!(spec.set("kp=2").is_ok() && spec.get("kp") == Some(2.0));
     assert!(

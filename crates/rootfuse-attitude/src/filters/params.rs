@@ -351,6 +351,7 @@ impl From<InvalidParam> for ParamError {
             value: e.value,
             min: e.min,
             max: e.max,
+            unit: e.unit,
         }
     }
 }
@@ -383,6 +384,8 @@ pub enum ParamError {
         min: f64,
         /// Largest accepted.
         max: f64,
+        /// The parameter's unit (`"1"` or empty for none).
+        unit: &'static str,
     },
     /// The value is in range but not one the parameter takes (a fraction for a whole
     /// number, anything but 0/1 for a switch, anything but 6/9 for `dof`).
@@ -425,9 +428,15 @@ impl fmt::Display for ParamError {
                 value,
                 min,
                 max,
-            } => {
-                write!(f, "parameter `{name}` = {value} is outside [{min}, {max}]")
+                unit,
+            } => InvalidParam {
+                name,
+                value: *value,
+                min: *min,
+                max: *max,
+                unit,
             }
+            .fmt(f),
             Self::WrongKind { name, value, kind } => write!(
                 f,
                 "parameter `{name}` = {value} is not allowed: it takes a {}",
@@ -605,7 +614,7 @@ macro_rules! params_with_screening {
                 match name {
                     $( stringify!($field) => {
                         if !($min..=$max).contains(&value) {
-                            return Err($crate::filters::ParamError::OutOfRange { name: stringify!($field), value, min: $min, max: $max });
+                            return Err($crate::filters::ParamError::OutOfRange { name: stringify!($field), value, min: $min, max: $max, unit: $unit });
                         }
                         self.$field = <$ty as $crate::filters::ParamValue>::from_f64(value).ok_or(
                             $crate::filters::ParamError::WrongKind {
