@@ -132,7 +132,7 @@ fn raw_counts_and_dead_sensors_are_named() {
     assert!(
         found[0]
             .to_string()
-            .contains("every reading (3000) is zero"),
+            .contains("every reading checked (3000) is zero"),
         "{}",
         found[0]
     );

@@ -1,6 +1,6 @@
 //! What `rootfuse run` says about each input once it has run: the units its data look like
-//! (an error for time and the gyroscope unless their unit was declared, a warning for the
-//! others; every one an error under `--strict`) and a sensor whose every sample or correction
+//! (an error where the gyroscope fails against the motion and its unit was not declared, a
+//! warning otherwise; every one an error under `--strict`) and a sensor whose every sample or correction
 //! the filter skipped (always an error: the estimate would be silently wrong).
 use rootfuse_attitude::units::{Sensor, UnitCheck, UnitFinding, Units};
 use rootfuse_attitude::{Recording, Vec3};
@@ -135,17 +135,16 @@ impl InputChecks {
                 verdict.error = Some(format!("{line} (--strict)"));
                 return verdict;
             }
-            // Time and angular rate in another unit turn every estimate wrong, whatever the
-            // filter: that is an error unless the unit was declared (then the readings are
-            // taken as declared, and the finding stays a warning).
-            let decisive = matches!(f.sensor, Sensor::Time | Sensor::Gyroscope) && !f.dead;
-            if decisive && !self.units.is_declared(f.sensor) {
-                let subject = match f.sensor {
-                    Sensor::Time => "time stamps in the wrong unit make",
-                    _ => "a gyroscope in the wrong unit makes",
-                };
+            // A gyroscope whose readings fail against the motion itself (the turning of the
+            // gravity direction) turns every estimate wrong, whatever the filter: an error
+            // unless its unit was declared (then the readings are taken as declared, and the
+            // finding stays a warning). Magnitudes outside their usual range (a slow logger's
+            // time step, a fast spin) stay warnings: they may be real; time so far off that
+            // every step is skipped is an error above.
+            if f.decisive && !self.units.is_declared(f.sensor) {
                 verdict.error = Some(format!(
-                    "{line} ({subject} every estimate wrong, so this is an error; if the readings are in {unit} after all, say so: --units {key}={unit})",
+                    "{line} (a {sensor} in the wrong unit makes every estimate wrong, so this is an error; if the readings are in {unit} after all, say so: --units {key}={unit})",
+                    sensor = f.sensor.name(),
                     key = f.sensor.key(),
                     unit = f.declared,
                 ));

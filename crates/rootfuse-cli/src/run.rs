@@ -66,9 +66,9 @@ pub struct RunArgs {
     /// `mag=uT|nT|G|mG`, or a factor to the filters' unit for raw counts (`acc=0.000598`);
     /// sensors left out are in the filters' units. Each input's data are checked against
     /// these units: a sensor whose readings look like another unit is named with the option
-    /// that declares it. For time and the gyroscope that is an error unless their unit is
-    /// given here (a wrong one makes every estimate wrong; `gyro=rad/s` says the readings are
-    /// rad/s after all), for the accelerometer and magnetometer a warning.
+    /// that declares it: a warning, but an error for a gyroscope whose readings fail against
+    /// how the gravity direction turned, unless its unit is given here (a wrong one makes
+    /// every estimate wrong; `gyro=rad/s` says the readings are rad/s after all).
     #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
     units: Units,
     /// Make every warning about an input an error (exit 2, no estimate written): readings that
@@ -106,6 +106,12 @@ pub struct RunArgs {
 pub fn run(args: &RunArgs) -> Result<Outcome, String> {
     let spec = args.filter.spec()?;
     check_filter_options(args, &spec)?;
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(format!(
+            "{}: --out is a file, not a folder: give the folder the estimates go to",
+            args.out.display()
+        ));
+    }
     let files = input_files(&args.inputs)?;
     let (format, columnar) = output_format(args, &files)?;
     let outputs_of_files = output_paths(&files, &args.out, format)?;

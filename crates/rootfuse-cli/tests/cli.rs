@@ -211,6 +211,28 @@ fn bad_input_is_one_clear_line_and_exit_code_2() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).1.contains("outside"));
+    // Without --filter the flagship runs; an --out that is a file is named as such.
+    let flagship = dir.join("flagship");
+    let o = run(&[
+        "run",
+        &good.display().to_string(),
+        "--out",
+        &flagship.display().to_string(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o).1);
+    assert!(flagship.join("good.csv").is_file());
+    let o = run(&[
+        "run",
+        &good.display().to_string(),
+        "--out",
+        &good.display().to_string(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o).1.contains("--out is a file, not a folder"),
+        "{}",
+        text(&o).1
+    );
 }
 
 #[test]

@@ -214,7 +214,7 @@ CASES = [
          ["--units", f"acc={G / 16384!r}"], 0),
     Case("gyro-deg", "gyroscope in °/s", _scaled(GYR, DEG), [], 2,
          "look like deg/s: run with --units gyro=deg/s (a gyroscope in the wrong unit makes every estimate wrong"),
-    Case("gyro-rad-declared", "gyroscope in rad/s, declared (the check stays a warning)", _scaled(GYR, DEG),
+    Case("gyro-deg-declared-rad", "gyroscope in °/s, declared as rad/s (the check stays a warning)", _scaled(GYR, DEG),
          ["--units", "gyro=rad/s"], 0, "look like deg/s: run with --units gyro=deg/s"),
     Case("gyro-deg-strict", "gyroscope in °/s, `--strict`", _scaled(GYR, DEG), ["--strict"], 2,
          "look like deg/s: run with --units gyro=deg/s (--strict)"),

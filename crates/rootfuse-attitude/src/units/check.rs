@@ -447,8 +447,9 @@ impl UnitCheck {
                     declared,
                     likely: None,
                     dead: true,
+                    decisive: false,
                     evidence: format!(
-                        "every reading ({readings}) is {}",
+                        "every reading checked ({readings}) is {}",
                         if hist.non_finite == 0 {
                             "zero"
                         } else {
@@ -466,6 +467,7 @@ impl UnitCheck {
                     declared,
                     likely,
                     dead: false,
+                    decisive: false,
                     evidence: if declared.is_si() {
                         format!(
                             "the {what} is {} {si}, not within {lo}–{hi} {si}",
@@ -504,7 +506,8 @@ impl UnitCheck {
                 declared,
                 likely: None,
                 dead: true,
-                evidence: format!("no reading ({readings}) is a number"),
+                decisive: false,
+                evidence: format!("no reading checked ({readings}) is a number"),
             });
         }
         let deg = Unit::parse(Sensor::Gyroscope, "deg/s")?;
@@ -532,6 +535,7 @@ impl UnitCheck {
                 declared,
                 likely: Some(best.0),
                 dead: false,
+                decisive: true,
                 evidence: format!(
                     "as {declared} its readings explain {:.0} % of the {} rad the gravity direction turned, as {} {:.0} %",
                     100.0 * declared_share.max(0.0),
@@ -548,6 +552,7 @@ impl UnitCheck {
             declared,
             likely: (declared != deg).then_some(deg),
             dead: false,
+            decisive: false,
             evidence: format!(
                 "as {declared}, 0.1 % of its readings exceed {} rad/s, faster than a gyroscope measures ({MAX_PLAUSIBLE_RATE} rad/s)",
                 short(fast)
@@ -591,6 +596,10 @@ pub struct UnitFinding {
     /// The sensor gave no usable reading at all (every one zero or not a number): no unit
     /// is in question.
     pub dead: bool,
+    /// The readings were tested against the motion (the gyroscope against how the gravity
+    /// direction turned) and the declared unit clearly failed: a run in it is known to be
+    /// wrong, where a magnitude outside its usual range may still be a real one.
+    pub decisive: bool,
 }
 
 impl fmt::Display for UnitFinding {
