@@ -91,38 +91,37 @@ pub fn spec_from(
     Ok(spec)
 }
 
-/// A `UserWarning` where most samples of a call of at least ten were skipped whole for their
-/// time step (flag 1) or their gyroscope (flag 2): sample times given as `dt`, times in ms, a
-/// gyroscope in °/s. The estimates are then mostly the start's; the flags say which.
-pub fn warn_if_mostly_skipped(py: Python<'_>, call: &str, flags: &[u8]) -> PyResult<()> {
-    let n = flags.len();
-    let count = |bit: u8| flags.iter().filter(|&&f| f & bit != 0).count();
-    let (dt, gyr) = (count(1), count(2));
-    let advice = if n < 10 {
-        None
-    } else if 2 * dt > n {
-        Some(format!(
-            "{call}: {dt} of {n} samples were skipped for their time step (flag 1): `dt` is the step before each sample in s (sample times go to `t=`), `t` is in s (divide ms by 1000), and a step beyond `max_dt` (1 s by default) is a gap"
-        ))
-    } else if 2 * gyr > n {
-        Some(format!(
-            "{call}: {gyr} of {n} samples were skipped for their gyroscope (flag 2): beyond `max_gyr` (35 rad/s by default) or not finite; a gyroscope in deg/s needs np.radians"
-        ))
-    } else {
-        None
-    };
-    match advice {
-        Some(message) => {
-            let message = std::ffi::CString::new(message).unwrap_or_default();
-            PyErr::warn(
-                py,
-                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-                &message,
-                1,
-            )
-        }
-        None => Ok(()),
+/// A `UserWarning` where most of a call's steps (ten or more) will be skipped: not finite,
+/// not positive, or beyond `max_dt` (sample times given as `dt`, times in ms). Decided from
+/// the input before the filter runs, so a warning turned into an error leaves the filter as
+/// it was.
+fn warn_if_most_steps_skipped(
+    py: Python<'_>,
+    call: &str,
+    steps: &Steps,
+    n: usize,
+    max_dt: f64,
+) -> PyResult<()> {
+    let steps = steps.borrowed();
+    let skipped = (0..n)
+        .filter(|&i| {
+            let dt = steps.at(i);
+            !(dt > 0.0 && dt <= max_dt)
+        })
+        .count();
+    if n < 10 || 2 * skipped <= n {
+        return Ok(());
     }
+    let message = format!(
+        "{call}: {skipped} of {n} samples will be skipped for their time step (flag 1): `dt` is the step before each sample in s (sample times go to `t=`), `t` is in s (divide ms by 1000), and a step beyond `max_dt` ({max_dt} s) is a gap"
+    );
+    let message = std::ffi::CString::new(message).unwrap_or_default();
+    PyErr::warn(
+        py,
+        &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+        &message,
+        1,
+    )
 }
 
 /// Lane 0's counters.
@@ -470,9 +469,9 @@ impl Filter {
     /// a sample); `flags` `(N,)` uint8 per sample: 1 dt, 2 gyroscope (whole sample skipped),
     /// 4 accelerometer, 8 magnetometer (correction skipped), 16 gated by the filter, 32 at
     /// rest, 64 magnetic disturbance. NaN/inf inside the arrays are not errors: that sample
-    /// (or correction) is skipped and flagged. Where most samples of a call (ten or more)
-    /// were skipped whole for their time step or gyroscope, a `UserWarning` says the likely
-    /// cause (sample times given as `dt`, times in ms, a gyroscope in deg/s).
+    /// (or correction) is skipped and flagged. Where most steps of a call (ten or more) will
+    /// be skipped (not positive or beyond `max_dt`), a `UserWarning` says the likely cause
+    /// (sample times given as `dt`, times in ms) before the filter runs.
     #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None, covariance=true))]
     #[allow(clippy::too_many_arguments)]
     fn update_batch<'py>(
@@ -493,6 +492,8 @@ impl Filter {
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
         let (steps, end) = steps.continuing(*last_time);
+        let max_dt = self.spec.get("max_dt").unwrap_or(f64::INFINITY);
+        warn_if_most_steps_skipped(py, "update_batch", &steps, n, max_dt)?;
         *last_time = end;
         drop(last_time);
         let state: &mut State = &mut guard;
@@ -509,7 +510,6 @@ impl Filter {
                 PyArray1::from_vec(py, series.cov).reshape([n, 3, 3])?,
             )?;
         }
-        warn_if_mostly_skipped(py, "update_batch", &series.flags)?;
         out.set_item("flags", PyArray1::from_vec(py, series.flags))?;
         Ok(out)
     }

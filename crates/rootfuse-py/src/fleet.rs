@@ -329,6 +329,12 @@ fn fleet_reader(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<FleetRead
     };
     if source.is_instance_of::<pyo3::types::PyString>() || source.hasattr("__fspath__")? {
         let path: std::path::PathBuf = source.extract()?;
+        if rootfuse_columnar::Format::of_path(&path) == Some(rootfuse_columnar::Format::Csv) {
+            return Err(PyValueError::new_err(format!(
+                "{}: a CSV file: this reads fleets from Parquet and Arrow; a CSV recording is read by rootfuse.read_csv and run by Filter.update_batch (or `rootfuse run` on the file)",
+                path.display()
+            )));
+        }
         // Opening reads the footer and the schema: file work, without the GIL.
         return py
             .detach(|| FleetReader::open(&path, ImuGaps::Keep))

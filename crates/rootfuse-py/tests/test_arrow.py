@@ -103,6 +103,11 @@ def test_a_file_path_is_read_in_rust(fleet, tmp_path):
     pq.write_table(table.drop_columns(["mx", "my", "mz"]), six)
     with pytest.raises(ValueError, match=r"six\.parquet: no magnetometer columns"):
         ra.estimate_table(six, "flagship", dof=9)
+    # A CSV recording is pointed to the reader that takes it, not called a corrupt Parquet.
+    csv = tmp_path / "rec.csv"
+    csv.write_text("t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9.8\n")
+    with pytest.raises(ValueError, match=r"rec\.csv: a CSV file: .*rootfuse\.read_csv"):
+        ra.estimate_table(csv, "flagship")
 
 
 def test_datasets_and_parquet_files_are_streamed(fleet, tmp_path):

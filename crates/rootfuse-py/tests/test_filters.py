@@ -176,23 +176,24 @@ def test_sample_times_in_chunks_continue_the_stream(chunk):
     assert again["flags"][0] & rf.FLAG_DT
 
 
-def test_mostly_skipped_samples_warn():
-    """Sample times passed as `dt` (positionally), times in ms, a gyroscope in deg/s: most
-    samples are skipped whole, and update_batch says why instead of returning the start's
-    orientation quietly."""
+def test_mostly_skipped_steps_warn_before_running():
+    """Sample times passed as `dt` (positionally), times in ms: most steps are skipped, and
+    update_batch says why, before it runs: a warning raised as an error leaves the filter as
+    it was."""
+    import warnings
     rec = rf.simulate("slow-rotation", seed=1, duration_s=20.0)
     g, a, m, t = rec["gyr"], rec["acc"], rec["mag"], rec["t"]
     with pytest.warns(UserWarning, match=r"skipped for their time step .*sample times go to `t=`"):
         rf.Filter("flagship").update_batch(g, a, m, t)
     with pytest.warns(UserWarning, match=r"divide ms by 1000"):
         rf.Filter("flagship").update_batch(g, a, m, t=t * 1000)
-    fast = rf.simulate("fast-rotation", seed=1, duration_s=20.0)
-    with pytest.warns(UserWarning, match=r"skipped for their gyroscope .*np.radians"):
-        rf.Filter("flagship").update_batch(np.degrees(fast["gyr"]), fast["acc"], fast["mag"], t=fast["t"])
-    import warnings
+    f = rf.Filter("flagship")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        rf.Filter("flagship").update_batch(g, a, m, t=t)
+        with pytest.raises(UserWarning):
+            f.update_batch(g, a, m, t=t * 1000)
+        assert f.rejections["dt"] == 0
+        f.update_batch(g, a, m, t=t)  # no warning for a good call
 
 
 def test_params_round_trip():

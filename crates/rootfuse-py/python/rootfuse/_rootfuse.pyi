@@ -141,7 +141,8 @@ class Filter:
         """6 or 9; None for ``gyro``."""
     @property
     def params(self) -> Dict[str, float]:
-        """Every parameter's value (units in ``filters()``)."""
+        """Every parameter's value (units in ``filters()``); whole-number kinds as ints, so
+        that ``Filter(name, **f.params)`` rebuilds the filter."""
     def update_batch(
         self,
         gyr: _FloatArray,
@@ -155,7 +156,9 @@ class Filter:
         """Whole arrays (N, 3) from the current state, GIL released; exactly one of ``dt``
         (s, scalar or (N,)) and ``t`` (s, (N,)). Returns ``quat`` (N, 4), ``bias`` (N, 3)
         rad/s, ``covariance`` (N, 3, 3) rad² (filters that have one, unless
-        ``covariance=False``), ``flags`` (N,) uint8."""
+        ``covariance=False``), ``flags`` (N,) uint8. A call with ``t`` after a call with ``t``
+        continues its times (a stream fed in chunks); a ``UserWarning`` where most steps
+        would be skipped (sample times given as ``dt``, times in ms)."""
     def update(
         self,
         gyr: Union[Sequence[float], _FloatArray],

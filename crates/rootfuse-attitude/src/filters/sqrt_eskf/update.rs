@@ -345,7 +345,8 @@ impl<T: Lane> SqrtEskf<T> {
         };
         // Covariance matching: where the innovations have been larger than predicted, the
         // measurement variance grows by that ratio (bits unchanged where disabled).
-        // A window of 0 (off) is a rate of ∞.
+        // A window of 0 (off) is a rate of ∞ (so is one below f32's smallest reciprocal,
+        // about 3e-39 s, in `f32` lanes).
         let adapt = self.coef.adapt_rate.simd_lt(T::from_f64(f64::INFINITY));
         let scale = self
             .state
