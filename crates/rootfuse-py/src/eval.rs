@@ -282,7 +282,9 @@ pub fn scenario_names() -> Vec<&'static str> {
 /// (`"time=ms,gyro=deg/s,acc=g,mag=nT"`, or a factor to SI: `"acc=0.000598"`); the readings
 /// are converted as read. The data are then checked against those units: a sensor whose
 /// readings look like another unit raises a `UserWarning` naming the likely unit and the
-/// `units=` entry that fixes it (an error with `strict=True`).
+/// `units=` entry that fixes it (an error with `strict=True`); a gyroscope whose readings
+/// fail against how the gravity direction turned raises ValueError unless `units` gives its
+/// unit (`"gyro=rad/s"` if the readings are rad/s after all), as `rootfuse run` does.
 /// A malformed file raises ValueError naming file, line and column; a missing one OSError.
 #[pyfunction]
 #[pyo3(signature = (path, *, units=None, strict=false))]
@@ -320,6 +322,16 @@ pub fn read_csv<'py>(
         };
         if strict {
             return Err(PyValueError::new_err(format!("{advice} (strict=True)")));
+        }
+        // As `rootfuse run`: a gyroscope that fails against the motion is an error unless
+        // its unit was declared.
+        if f.decisive && !units.is_declared(f.sensor) {
+            return Err(PyValueError::new_err(format!(
+                "{advice} (a {sensor} in the wrong unit makes every estimate wrong, so this is an error; if the readings are in {unit} after all, pass units=\"{key}={unit}\")",
+                sensor = f.sensor.name(),
+                unit = f.declared,
+                key = f.sensor.key(),
+            )));
         }
         let message = std::ffi::CString::new(advice).unwrap_or_default();
         PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
