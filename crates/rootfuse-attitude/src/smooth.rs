@@ -239,6 +239,15 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 ///
 /// [`SqrtEskfParams::for_smoothing`]: crate::SqrtEskfParams::for_smoothing
 ///
+/// A gap (a positive time step the filter skipped as beyond its `max_dt`, samples missing)
+/// splits the recording: each stretch between gaps is smoothed on its own, because a pass
+/// that carried its orientation across the gap would be wrong by whatever turn the gap hid,
+/// and confidently so, and the fusion would spread that into the other side (30 s missing
+/// from a slow rotation moved the smoothed estimates before it by 18°). The first run over
+/// the whole recording finds the gaps; with any, each stretch then runs again, so a
+/// recording with gaps costs twice one without. [`Smoothed::rejections`] is the whole
+/// run's, the gaps counted in it.
+///
 /// # Errors
 /// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
 pub fn forward_backward<F: OrientationFilter<f64x2>>(
@@ -246,6 +255,34 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     mut build: impl FnMut() -> F,
     nine_d: bool,
 ) -> Result<Smoothed, SmoothError> {
+    let (whole, gaps) = smooth_stretch(rec, &mut build, nine_d)?;
+    if gaps.is_empty() {
+        return Ok(whole);
+    }
+    let mut quat = Vec::with_capacity(rec.len());
+    let mut forward_only = 0;
+    let mut from = 0;
+    for end in gaps.into_iter().chain([rec.len()]) {
+        let (part, _) = smooth_stretch(&rec.slice(from..end), &mut build, nine_d)?;
+        quat.extend(part.quat);
+        forward_only += part.forward_only;
+        from = end;
+    }
+    Ok(Smoothed {
+        quat,
+        forward_only,
+        ..whole
+    })
+}
+
+/// [`forward_backward`] over `rec` as one stretch, or, where the forward lane skipped a
+/// positive step (a gap), no estimates and the indices of the samples that follow the gaps
+/// (ascending, none at 0).
+fn smooth_stretch<F: OrientationFilter<f64x2>>(
+    rec: &Recording,
+    build: &mut impl FnMut() -> F,
+    nine_d: bool,
+) -> Result<(Smoothed, Vec<usize>), SmoothError> {
     let n = rec.len();
     let mut filter = build();
     if n > 0 && filter.attitude_covariance().is_none() {
@@ -291,6 +328,19 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
         backward.push((q.lane(1), p_lane(1)));
         bias.push(filter.bias().lane(0));
         step_skipped.push(Skipped::of_lane_0(&filter.flags()));
+    }
+    let gaps: Vec<usize> = (1..n)
+        .filter(|&k| step_skipped[k] == Some(Skipped::Step) && rec.dt(k) > 0.0)
+        .collect();
+    if !gaps.is_empty() {
+        // Each stretch is smoothed on its own: no estimates to form here.
+        let skipped = Smoothed {
+            quat: Vec::new(),
+            forward_only: 0,
+            rejections: filter.rejections().lane(0),
+            gyro_scale: None,
+        };
+        return Ok((skipped, gaps));
     }
     backward.reverse();
     if !nine_d {
@@ -348,12 +398,15 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
             refine_by_gyro(rec, &mut quat, &bias, &step_skipped, start, tau);
         }
     }
-    Ok(Smoothed {
-        quat,
-        forward_only,
-        rejections: filter.rejections().lane(0),
-        gyro_scale: None,
-    })
+    Ok((
+        Smoothed {
+            quat,
+            forward_only,
+            rejections: filter.rejections().lane(0),
+            gyro_scale: None,
+        },
+        Vec::new(),
+    ))
 }
 
 /// Refines `quat` by the gyroscope (rates minus `bias`) above `1/(2π·tau)`, zero-phase (see
@@ -408,10 +461,10 @@ fn refine_by_gyro(
 /// bias, times `sign`) over its `dt`, then the fraction `1 − exp(−dt/tau)` of the earth-frame
 /// rotation toward `to`, taken as twice the vector part of `to ⊗ moved*` (the rotation vector
 /// to within `θ²/24` of the angle `θ`, and the step is a small fraction of it). A sample the
-/// filter skipped (`skipped`), or whose rate or step is not usable (not finite, `dt ≤ 0`, a
-/// turn that is not finite), does not turn the estimate: it is held over a sample's step (a
-/// rate beyond `max_gyr`, a repeated time), and after a gap (a step beyond `max_dt`), over
-/// which the orientation may have changed by anything, the pass starts again at `to`.
+/// filter skipped (`skipped`: a rate beyond `max_gyr`, a repeated time), or whose rate or
+/// step is not usable (not finite, `dt ≤ 0`, a turn that is not finite), does not turn the
+/// estimate: it is held over that sample's step. (A gap, a step beyond `max_dt`, never
+/// reaches here: [`forward_backward`] smooths the stretches between gaps apart.)
 fn gyro_step(
     rec: &Recording,
     bias: &[Vec3<f64>],
@@ -422,14 +475,7 @@ fn gyro_step(
     gain: &mut LowPassGain<f64>,
 ) -> Quat<f64> {
     let (w, dt) = (rec.gyr[k] - bias[k], rec.dt(k));
-    let stepped = dt.is_finite() && dt > 0.0;
-    match skipped {
-        // Skipped for a step that is positive: one beyond `max_dt`, a gap.
-        Some(Skipped::Step) if stepped => return to,
-        Some(_) => return from,
-        None => {}
-    }
-    if !(w.is_finite() && stepped) {
+    if skipped.is_some() || !(w.is_finite() && dt.is_finite() && dt > 0.0) {
         return from;
     }
     let moved = integrate_gyro(from, w * sign, dt);

@@ -141,13 +141,8 @@ impl InputChecks {
             // finding stays a warning). Magnitudes outside their usual range (a slow logger's
             // time step, a fast spin) stay warnings: they may be real; time so far off that
             // every step is skipped is an error above.
-            if f.decisive && !self.units.is_declared(f.sensor) {
-                verdict.error = Some(format!(
-                    "{line} (a {sensor} in the wrong unit makes every estimate wrong, so this is an error; if the readings are in {unit} after all, say so: --units {key}={unit})",
-                    sensor = f.sensor.name(),
-                    key = f.sensor.key(),
-                    unit = f.declared,
-                ));
+            if let Some((why, entry)) = f.refusal(&self.units) {
+                verdict.error = Some(format!("{line} ({why}, say so: --units {entry})"));
                 return verdict;
             }
             verdict.warnings.push(line);

@@ -325,12 +325,9 @@ pub fn read_csv<'py>(
         }
         // As `rootfuse run`: a gyroscope that fails against the motion is an error unless
         // its unit was declared.
-        if f.decisive && !units.is_declared(f.sensor) {
+        if let Some((why, entry)) = f.refusal(&units) {
             return Err(PyValueError::new_err(format!(
-                "{advice} (a {sensor} in the wrong unit makes every estimate wrong, so this is an error; if the readings are in {unit} after all, pass units=\"{key}={unit}\")",
-                sensor = f.sensor.name(),
-                unit = f.declared,
-                key = f.sensor.key(),
+                "{advice} ({why}, pass units=\"{entry}\")"
             )));
         }
         let message = std::ffi::CString::new(advice).unwrap_or_default();

@@ -622,6 +622,41 @@ impl UnitFinding {
             None => format!("{}=<factor to {}>", self.sensor.key(), self.sensor.si()),
         }
     }
+
+    /// Why a run must not go on with this finding, ending "if the readings are in rad/s after
+    /// all", and the units entry that says so (`gyro=rad/s`): for a [`decisive`](Self::decisive)
+    /// finding whose sensor `units` did not declare. `None` where the finding may stand as a
+    /// warning. `rootfuse run` and Python's `read_csv` refuse with it, each naming its own way
+    /// to pass the entry.
+    ///
+    /// ```
+    /// use rootfuse_attitude::units::{Sensor, Unit, UnitFinding, Units};
+    /// let finding = UnitFinding {
+    ///     sensor: Sensor::Gyroscope,
+    ///     declared: Unit::parse(Sensor::Gyroscope, "rad/s").unwrap(),
+    ///     likely: Unit::parse(Sensor::Gyroscope, "deg/s"),
+    ///     evidence: "the readings turn 57 times faster than gravity".into(),
+    ///     dead: false,
+    ///     decisive: true,
+    /// };
+    /// let (why, entry) = finding.refusal(&Units::default()).unwrap();
+    /// assert!(why.contains("wrong unit makes every estimate wrong"));
+    /// assert_eq!(entry, "gyro=rad/s");
+    /// // Declared, the finding stays a warning.
+    /// assert!(finding.refusal(&"gyro=rad/s".parse().unwrap()).is_none());
+    /// ```
+    pub fn refusal(&self, units: &Units) -> Option<(String, String)> {
+        if !self.decisive || units.is_declared(self.sensor) {
+            return None;
+        }
+        let why = format!(
+            "a {} in the wrong unit makes every estimate wrong, so this is an error; if the \
+             readings are in {} after all",
+            self.sensor.name(),
+            self.declared
+        );
+        Some((why, format!("{}={}", self.sensor.key(), self.declared)))
+    }
 }
 
 #[cfg(test)]
