@@ -1,22 +1,25 @@
 //! `rootfuse eval`: the BROAD metrics of estimate files against ground truth.
+use crate::run::parse_units;
 use clap::Args;
-use rootfuse_attitude::{Quat, Recording};
-use rootfuse_eval::alignment::{FrameAlignment, align_recording};
+use rootfuse_attitude::Quat;
+use rootfuse_attitude::units::{Sensor, Units};
+use rootfuse_eval::alignment::{FrameAlignment, align_frames};
 use rootfuse_eval::consistency::{Consistency, UpperTriangle, consistency};
-use rootfuse_eval::metrics::{Alignment, Rmse, evaluate};
+use rootfuse_eval::metrics::{Alignment, Rmse, rmse};
 use rootfuse_io::Estimates;
-use rootfuse_io::{list_dir, read_csv, read_estimates};
+use rootfuse_io::{list_dir, read_estimates, read_truth};
 use std::path::{Path, PathBuf};
 
 /// Options of `rootfuse eval`.
 #[derive(Args)]
 pub struct EvalArgs {
-    /// Ground-truth recording (with `qw,qx,qy,qz` and optionally `use`).
+    /// Ground-truth file: `t,qw,qx,qy,qz` and optionally `use` (a recording, or a
+    /// motion-capture export without IMU columns).
     #[arg(conflicts_with = "truth_dir", requires = "est")]
     truth: Option<PathBuf>,
     /// Estimate file (`t,qw,qx,qy,qz`).
     est: Option<PathBuf>,
-    /// Folder of ground-truth recordings (matched to estimates by file name).
+    /// Folder of ground-truth files (matched to estimates by file name).
     #[arg(long, requires = "est_dir")]
     truth_dir: Option<PathBuf>,
     /// Folder of estimate files.
@@ -51,6 +54,10 @@ pub struct EvalArgs {
         requires = "consistency"
     )]
     floor: f64,
+    /// The units the truth files are written in, as given to `rootfuse run --units` (only
+    /// `time` matters here: the estimates' time is in s, the truth's is converted to match).
+    #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
+    units: Units,
 }
 
 /// The leading share of each file --consistency leaves out (the filter's start-up).
@@ -92,42 +99,51 @@ fn covariances(est: &Path, data: &Estimates) -> Result<Vec<UpperTriangle>, Strin
 /// `frames`.
 fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<Scored, String> {
     let frames = args.align;
-    let rec = read_csv(truth).map_err(|e| e.to_string())?;
+    let mut reference = read_truth(truth).map_err(|e| e.to_string())?;
+    let seconds = args.units.get(Sensor::Time).factor();
+    if seconds != 1.0 {
+        reference.t.iter_mut().for_each(|t| *t *= seconds);
+    }
     let est_data = read_estimates(est).map_err(|e| e.to_string())?;
-    if est_data.t.len() != rec.len() {
+    let n = reference.t.len();
+    if est_data.t.len() != n {
         return Err(format!(
-            "{}: {} estimates for {} truth samples in {}",
+            "{}: {} estimates for {n} truth samples in {}",
             est.display(),
             est_data.t.len(),
-            rec.len(),
             truth.display()
         ));
     }
-    if let Some(i) =
-        (0..rec.len()).find(|&i| (est_data.t[i] - rec.t[i]).abs() > 1e-6 * rec.t[i].abs().max(1.0))
-    {
+    let t = &reference.t;
+    if let Some(i) = (0..n).find(|&i| (est_data.t[i] - t[i]).abs() > 1e-6 * t[i].abs().max(1.0)) {
+        // Estimates are written in s; a truth file in ms gives times 1000 times theirs.
+        let ratio = t[n - 1] / est_data.t[n - 1];
+        let hint = if (ratio.abs() - 1.0).abs() > 0.01 && ratio.is_finite() {
+            format!(
+                "; the truth's times are {ratio:.4} times the estimates': if its time is not in s, give its unit as to `rootfuse run` (--units time=ms)"
+            )
+        } else {
+            String::new()
+        };
         return Err(format!(
-            "{}: line {}: time {} does not match the truth's {} ({})",
+            "{}: line {}: time {} does not match the truth's {} ({}){hint}",
             est.display(),
             i + 2,
             est_data.t[i],
-            rec.t[i],
+            t[i],
             truth.display()
         ));
     }
+    let use_mask = reference.use_mask.as_deref();
     let consistency = args
         .consistency
         .then(|| -> Result<Consistency, String> {
             let cov = covariances(est, &est_data)?;
-            let truth_q = rec
-                .truth
-                .as_deref()
-                .ok_or("the truth file has no qw,qx,qy,qz")?;
             consistency(
                 &est_data.quat,
                 &cov,
-                truth_q,
-                rec.use_mask.as_deref(),
+                &reference.quat,
+                use_mask,
                 align,
                 args.floor.to_radians(),
                 CONSISTENCY_SKIP,
@@ -136,24 +152,22 @@ fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<
         })
         .transpose()?;
     let alignment = frames
-        .then(|| align_recording(&rec, &est_data.quat, align))
+        .then(|| align_frames(&est_data.quat, &reference.quat, use_mask, align))
         .transpose()
         .map_err(|e| format!("{}: --align: {e}", est.display()))?;
-    let (rec, quat) = match &alignment {
+    let (truth_q, quat) = match &alignment {
         // Estimate and truth turned z-up together, so that heading and inclination split
         // about the truth's own vertical (a y-up motion-capture frame).
         Some(a) => {
             let level = a.level();
-            let truth = rec
-                .truth
-                .as_ref()
-                .map(|t| t.iter().map(|&r| level * r).collect());
+            let truth_q = reference.quat.iter().map(|&r| level * r).collect();
             let quat = est_data.quat.iter().map(|&q| level * a.apply(q)).collect();
-            (Recording { truth, ..rec }, quat)
+            (truth_q, quat)
         }
-        None => (rec, est_data.quat),
+        None => (reference.quat, est_data.quat),
     };
-    let rmse = evaluate(&rec, &quat, align).map_err(|e| format!("{}: {e}", truth.display()))?;
+    let rmse =
+        rmse(&quat, &truth_q, use_mask, align).map_err(|e| format!("{}: {e}", truth.display()))?;
     if rmse.n_used < MIN_SAMPLES {
         eprintln!(
             "warning: {}: only {} sample(s) count (use = 1, finite truth): an RMSE over so few says little about accuracy",

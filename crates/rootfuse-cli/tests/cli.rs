@@ -784,8 +784,9 @@ fn json_totals(json: &str) -> Vec<(String, f64)> {
 }
 
 /// `eval --align` on a simulated motion-capture truth (the simulated truth turned by an
-/// earth offset and a sensor-to-body rotation): as good as scoring against the truth in the
-/// IMU's own frames, and it prints both rotations.
+/// earth offset and a sensor-to-body rotation), written as a motion-capture export is
+/// (`t,qw,qx,qy,qz,use`, no IMU columns, time in ms, scored with `--units time=ms`): as good
+/// as scoring against the truth in the IMU's own frames, and it prints both rotations.
 #[test]
 fn eval_align_scores_truth_in_other_frames() {
     use rootfuse_attitude::{Quat, Vec3};
@@ -797,12 +798,14 @@ fn eval_align_scores_truth_in_other_frames() {
         Quat::from_rotation_vector(Vec3::new(1.2, -0.4, 2.0)),
         Quat::from_rotation_vector(Vec3::new(-0.3, 0.9, 0.2)),
     );
-    let mut mocap = rec.clone();
-    for q in mocap.truth.as_mut().unwrap() {
-        *q = earth * *q * body.conj();
+    let mut mocap = String::from("t,qw,qx,qy,qz,use\n");
+    for (t, q) in rec.t.iter().zip(rec.truth.as_ref().unwrap()) {
+        let q = earth * *q * body.conj();
+        let ms = t * 1000.0;
+        mocap += &format!("{ms},{},{},{},{},1\n", q.w, q.x, q.y, q.z);
     }
     let mocap_path = dir.join("mocap.csv");
-    write_recording(&mocap_path, &mocap).unwrap();
+    std::fs::write(&mocap_path, mocap).unwrap();
     let out = dir.join("o");
     let (code, _, stderr) = run_paths(&[&"run", &own, &"--filter", &"flagship", &"--out", &out]);
     assert_eq!(code, Some(0), "{stderr}");
@@ -811,6 +814,9 @@ fn eval_align_scores_truth_in_other_frames() {
         let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"eval", &truth, &est, &"--json"];
         if align {
             args.push(&"--align");
+        }
+        if truth == mocap_path {
+            args.push(&"--units=time=ms");
         }
         let (code, stdout, stderr) = run_paths(&args);
         assert_eq!(code, Some(0), "{stderr}");
@@ -832,8 +838,22 @@ fn eval_align_scores_truth_in_other_frames() {
         Some(4),
         "{json}"
     );
+    // Without the truth's time unit, the mismatch names it.
+    let (code, _, stderr) = run_paths(&[&"eval", &mocap_path, &est, &"--align"]);
+    assert_eq!(code, Some(2));
+    assert!(
+        stderr.contains("1000.0000 times the estimates'") && stderr.contains("--units time=ms"),
+        "{stderr}"
+    );
     // The table shows both rotations.
-    let (code, stdout, _) = run_paths(&[&"eval", &mocap_path, &est, &"--align"]);
+    let (code, stdout, _) = run_paths(&[
+        &"eval",
+        &mocap_path,
+        &est,
+        &"--align",
+        &"--units",
+        &"time=ms",
+    ]);
     assert_eq!(code, Some(0));
     assert!(
         stdout.contains("earth offset") && stdout.contains("sensor to body"),

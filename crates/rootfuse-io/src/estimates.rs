@@ -1,7 +1,7 @@
 //! Estimate files read back: `t,qw,qx,qy,qz` and whatever columns the run added.
 
 use crate::error::{Place, ReadError};
-use crate::recording::not_unit;
+use crate::recording::{not_unit, truth, use_cell};
 use crate::table::Table;
 use rootfuse_attitude::Quat;
 use std::path::Path;
@@ -88,4 +88,74 @@ pub fn read_estimates(path: impl AsRef<Path>) -> Result<Estimates, ReadError> {
         est.quat.push(Quat::new(v[1], v[2], v[3], v[4]));
     }
     Ok(est)
+}
+
+/// Ground truth read on its own: `t,qw,qx,qy,qz` and optionally `use`, from a recording
+/// (its IMU columns are not read) or from a motion-capture export that has no IMU columns.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Truth {
+    /// Sample times as written (the file's time unit), strictly increasing.
+    pub t: Vec<f64>,
+    /// Orientation, sensor to earth; all four components NaN where unknown.
+    pub quat: Vec<Quat<f64>>,
+    /// The samples that count for error evaluation (the `use` column), if the file has one.
+    pub use_mask: Option<Vec<bool>>,
+}
+
+/// Reads the ground truth of a file: `t` and `qw,qx,qy,qz` (any column order; NaN or empty
+/// where unknown, as [`read_csv`](crate::read_csv) reads them), and `use` if present. Other
+/// columns, the IMU's too, are not read: a motion-capture file `t,qw,qx,qy,qz,use` is truth
+/// enough to score estimates against (`rootfuse eval`).
+///
+/// ```
+/// let text = "t,qw,qx,qy,qz,use\n0,1,0,0,0,1\n0.01,,,,,0\n";
+/// let path = std::env::temp_dir().join("rootfuse_read_truth_doc.csv");
+/// std::fs::write(&path, text).unwrap();
+/// let truth = rootfuse_io::read_truth(&path).unwrap();
+/// assert_eq!(truth.t, [0.0, 0.01]);
+/// assert!(truth.quat[1].w.is_nan());
+/// assert_eq!(truth.use_mask, Some(vec![true, false]));
+/// ```
+///
+/// # Errors
+/// As [`read_csv`](crate::read_csv) for these columns: a missing one (the columns found are
+/// listed), a time not finite or not increasing, an infinite component, a known quaternion
+/// off unit norm, a `use` cell that is not 0/1.
+pub fn read_truth(path: impl AsRef<Path>) -> Result<Truth, ReadError> {
+    let mut table = Table::open(path.as_ref())?;
+    let tc = table.find("t").ok_or_else(|| table.missing("t"))?;
+    let mut cols = [0usize; 4];
+    for (slot, name) in cols.iter_mut().zip(["qw", "qx", "qy", "qz"]) {
+        *slot = table.find(name).ok_or_else(|| table.missing(name))?;
+    }
+    let use_col = table.find("use");
+    let mut out = Truth {
+        use_mask: use_col.map(|_| Vec::new()),
+        ..Truth::default()
+    };
+    while let Some(line) = table.next_row()? {
+        let t = table.value(line, tc)?;
+        if !t.is_finite() {
+            return Err(ReadError::NonFiniteTime {
+                place: table.place(line, tc),
+                value: t,
+            });
+        }
+        if let Some(&previous) = out.t.last()
+            && t <= previous
+        {
+            return Err(ReadError::NonMonotonicTime {
+                place: table.place(line, tc),
+                value: t,
+                previous,
+                hint: "",
+            });
+        }
+        out.quat.push(truth(&table, line, cols)?);
+        if let (Some(c), Some(mask)) = (use_col, &mut out.use_mask) {
+            mask.push(use_cell(&table, line, c)?);
+        }
+        out.t.push(t);
+    }
+    Ok(out)
 }

@@ -52,7 +52,7 @@ mod write;
 
 pub use atomic::{AtomicFile, CsvEstimateWriter, Staged, stale_temporaries, temporary_path};
 pub use error::{Place, ReadError, WriteError};
-pub use estimates::{Estimates, read_estimates};
+pub use estimates::{Estimates, Truth, read_estimates, read_truth};
 pub use folder::{
     FolderKind, FolderListing, IndexEntry, is_fleet_file, list_dir, read_dir, read_index, scan_dir,
 };

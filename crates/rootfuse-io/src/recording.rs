@@ -278,7 +278,7 @@ impl<R: std::io::Read> CsvBlocks<R> {
 
 /// The truth quaternion of a row: NaN (unknown) when any component is NaN or empty, an error
 /// when one is infinite or the whole is far from unit norm.
-fn truth<R: std::io::Read>(
+pub(crate) fn truth<R: std::io::Read>(
     table: &Table<R>,
     line: u64,
     cols: [usize; 4],
@@ -309,7 +309,11 @@ fn truth<R: std::io::Read>(
 
 /// A `use` cell: `1`/`0` (also `1.0`, `true`, `false` in any case, as pandas writes a bool or
 /// a float column); empty means unknown, which does not count.
-fn use_cell<R: std::io::Read>(table: &Table<R>, line: u64, c: usize) -> Result<bool, ReadError> {
+pub(crate) fn use_cell<R: std::io::Read>(
+    table: &Table<R>,
+    line: u64,
+    c: usize,
+) -> Result<bool, ReadError> {
     let text = table.text(c);
     match table.cell(c) {
         Cell::Number(1.0) => Ok(true),
