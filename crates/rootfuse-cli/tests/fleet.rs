@@ -1,7 +1,7 @@
 //! `rootfuse simulate` and `rootfuse run` on Parquet and Arrow fleets: results equal the
 //! library's per device bit for bit; bad input gives one line naming file, row group, row and
 //! column, exit code 2 and no output file; `--keep-going` completes the rest (exit code 1).
-use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, Int64Array, RecordBatch};
+use arrow::array::{ArrayRef, AsArray, Float32Array, Float64Array, RecordBatch, StringArray};
 use arrow::datatypes::{Float64Type, Int64Type};
 use arrow::record_batch::RecordBatchWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -260,17 +260,19 @@ fn bad_fleet_files_are_refused_with_their_place() {
         &dir,
         &p,
         &[],
-        &["missing.parquet: missing required column `gy`"],
+        &["missing.parquet: missing required column `gy` (the file has `device`, `t`, `gx`, `gz`"],
     );
 
     let p = name("mistyped.parquet");
-    let ints: ArrayRef = Arc::new(Int64Array::from((0..rows as i64).collect::<Vec<_>>()));
-    write_parquet(&p, replace(fleet_columns(rows), "t", ints), 16);
+    let text: ArrayRef = Arc::new(StringArray::from(vec!["0.01"; rows]));
+    write_parquet(&p, replace(fleet_columns(rows), "t", text), 16);
     refused(
         &dir,
         &p,
         &[],
-        &["mistyped.parquet: column `t` has type Int64, expected float32 or float64"],
+        &[
+            "mistyped.parquet: column `t` has type Utf8, expected a number (float, integer) or a timestamp",
+        ],
     );
 
     let p = name("device-float.parquet");

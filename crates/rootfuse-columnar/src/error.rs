@@ -50,12 +50,14 @@ pub enum ColumnarError {
         message: String,
     },
     /// A required column (or one of a group that is partly present) is missing.
-    #[error("{file}: missing required column `{column}`")]
+    #[error("{file}: missing required column `{column}` (the file has {found})")]
     MissingColumn {
         /// The file.
         file: PathBuf,
         /// The column.
         column: &'static str,
+        /// The columns the file has, by name (the first 12, then how many in all).
+        found: String,
     },
     /// A column has a type the format does not allow.
     #[error("{file}: column `{column}` has type {found}, expected {expected}")]

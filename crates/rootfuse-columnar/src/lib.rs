@@ -7,7 +7,9 @@
 //!
 //! # Format
 //! The columns and units of the CSV format (`docs/conventions.md` in the repository), found by
-//! name in any order, float32 or float64: `t` (s, strictly increasing per device),
+//! name in any order, numbers (floats; integers such as raw counts or a time in ms, and
+//! decimals, read as `f64`; a dictionary of them; `t` also a timestamp or duration, read in s):
+//! `t` (s, strictly increasing per device),
 //! `gx,gy,gz` (rad/s), `ax,ay,az` (m/s²), optionally `mx,my,mz` (any unit, all three or
 //! none), plus an optional `device` column (integer or string) saying which device a row
 //! belongs to: rows of many devices may interleave in any order; without it the file is one
@@ -43,6 +45,7 @@ mod params;
 mod reader;
 mod recordings;
 mod run;
+mod schema;
 mod writer;
 
 pub use error::{ColumnarError, Part};

@@ -4,8 +4,9 @@ use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
 use crate::kind::{self, Kind};
 use crate::mapped::{Footer, IpcFile, IpcStream, Mapped, StreamEnd};
+use crate::schema::{check_schema, column_list, float_values, type_error};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, RecordBatchReader};
-use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
+use arrow::datatypes::{DataType, Int64Type};
 use parquet::arrow::ProjectionMask;
 use parquet::arrow::arrow_reader::{
     ArrowReaderMetadata, ArrowReaderOptions, ParquetRecordBatchReader,
@@ -22,8 +23,8 @@ use std::path::{Path, PathBuf};
 /// length of the file.
 pub const BLOCK_ROWS: usize = 65_536;
 
-const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
-const MAG: [&str; 3] = ["mx", "my", "mz"];
+pub(crate) const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
+pub(crate) const MAG: [&str; 3] = ["mx", "my", "mz"];
 
 /// A device as written in the file: an integer or a string.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -199,8 +200,9 @@ enum Source {
 ///
 /// Columns are found by name, as in the CSV format: `t` (s), `gx,gy,gz` (rad/s), `ax,ay,az`
 /// (m/s²), optionally `mx,my,mz` (all three or none) and `device` (an integer or string
-/// column; without it the file is one device named after its stem); float32 or float64;
-/// other columns are ignored and not read. A null IMU value is read as NaN (a dropped
+/// column; without it the file is one device named after its stem); numbers (float,
+/// integer, decimal, or a dictionary of them; `t` also a timestamp, in s), read as `f64`
+/// and converted by [`with_units`](Self::with_units) (raw counts); other columns are ignored and not read. A null IMU value is read as NaN (a dropped
 /// packet). Row groups (record batches) without rows are skipped, not an error, and listed
 /// ([`empty_parts`](Self::empty_parts)) for the caller to report; a file whose parts are
 /// all empty has no rows ([`ColumnarError::Empty`] is the caller's to raise).
@@ -556,6 +558,7 @@ impl FleetReader {
                         .find(|&&c| c == name)
                         .copied()
                         .unwrap_or("t"),
+                    found: column_list(batch.schema().fields().iter().map(|f| f.name())),
                 })?;
             float_values(col).ok_or_else(|| type_error(&self.file, name, col.data_type()))
         };
@@ -628,31 +631,6 @@ impl FleetReader {
     }
 }
 
-/// Values of a float32 or float64 column as `f64`, nulls as NaN; `None` for another type.
-/// A float64 column without nulls is borrowed, not copied (the IMU columns are read once,
-/// into the block's vectors).
-fn float_values(col: &ArrayRef) -> Option<Cow<'_, [f64]>> {
-    if *col.data_type() == DataType::Float64 && col.null_count() == 0 {
-        return Some(Cow::Borrowed(col.as_primitive::<Float64Type>().values()));
-    }
-    let mut values: Vec<f64> = match col.data_type() {
-        DataType::Float64 => col.as_primitive::<Float64Type>().values().to_vec(),
-        DataType::Float32 => col
-            .as_primitive::<Float32Type>()
-            .values()
-            .iter()
-            .map(|&v| f64::from(v))
-            .collect(),
-        _ => return None,
-    };
-    if let Some(nulls) = col.nulls() {
-        for r in (0..values.len()).filter(|&r| nulls.is_null(r)) {
-            values[r] = f64::NAN;
-        }
-    }
-    Some(Cow::Owned(values))
-}
-
 /// Device numbers of a device column: `Err(Some(row))` for a null, `Err(None)` for a type
 /// that is neither integer nor string.
 fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<usize>> {
@@ -705,19 +683,6 @@ fn device_ids(col: &ArrayRef, devices: &mut Devices) -> Result<Vec<u32>, Option<
     Ok(ids)
 }
 
-fn type_error(file: &Path, column: &str, found: &DataType) -> ColumnarError {
-    ColumnarError::ColumnType {
-        file: file.to_owned(),
-        column: column.to_string(),
-        found: found.to_string(),
-        expected: if column == DEVICE {
-            "an integer or string"
-        } else {
-            "float32 or float64"
-        },
-    }
-}
-
 fn format_error(
     file: &Path,
     format: &'static str,
@@ -730,69 +695,4 @@ fn format_error(
         part: part.map_or_else(String::new, |p| format!("{p}: ")),
         message: e.to_string(),
     }
-}
-
-/// Checks names and types; returns the indices of the columns to read, whether there is a
-/// magnetometer and the device column's type.
-fn check_schema(
-    file: &Path,
-    schema: &Schema,
-) -> Result<(Vec<usize>, bool, Option<DataType>), ColumnarError> {
-    let fields = schema.fields();
-    for (i, f) in fields.iter().enumerate() {
-        if fields[..i].iter().any(|g| g.name() == f.name()) {
-            return Err(ColumnarError::DuplicateColumn {
-                file: file.to_owned(),
-                column: f.name().clone(),
-            });
-        }
-    }
-    let find = |name: &str| fields.iter().position(|f| f.name() == name);
-    let mut projection = Vec::new();
-    let mut float = |name: &'static str, i: usize| -> Result<(), ColumnarError> {
-        let ty = fields[i].data_type();
-        if !matches!(ty, DataType::Float32 | DataType::Float64) {
-            return Err(type_error(file, name, ty));
-        }
-        projection.push(i);
-        Ok(())
-    };
-    for name in REQUIRED {
-        let i = find(name).ok_or_else(|| ColumnarError::MissingColumn {
-            file: file.to_owned(),
-            column: name,
-        })?;
-        float(name, i)?;
-    }
-    let mag: Vec<Option<usize>> = MAG.iter().map(|n| find(n)).collect();
-    let has_mag = mag.iter().any(Option::is_some);
-    if has_mag {
-        for (name, i) in MAG.into_iter().zip(&mag) {
-            let i = i.ok_or_else(|| ColumnarError::MissingColumn {
-                file: file.to_owned(),
-                column: name,
-            })?;
-            float(name, i)?;
-        }
-    }
-    let device_type = match find(DEVICE) {
-        Some(i) => {
-            let ty = fields[i].data_type().clone();
-            let text = matches!(
-                ty,
-                DataType::Utf8
-                    | DataType::LargeUtf8
-                    | DataType::Utf8View
-                    | DataType::Dictionary(..)
-            );
-            if !ty.is_integer() && !text {
-                return Err(type_error(file, DEVICE, &ty));
-            }
-            projection.push(i);
-            Some(ty)
-        }
-        None => None,
-    };
-    projection.sort_unstable();
-    Ok((projection, has_mag, device_type))
 }

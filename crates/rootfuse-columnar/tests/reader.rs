@@ -319,3 +319,125 @@ fn cut_or_damaged_ipc_file_is_an_error_not_a_panic() {
         }
     }
 }
+
+/// A fleet as loggers and pandas store it, read as the float fleet with the same values:
+/// `t` a timestamp in ms, the gyroscope in int16 counts (converted by `with_units`), the
+/// accelerometer int32, the magnetometer a dictionary of floats, and a null count as NaN.
+/// A column that is no number is refused by type; a missing one lists the columns there are.
+#[test]
+fn integer_timestamp_and_dictionary_columns_read_as_numbers() {
+    use arrow::array::{
+        DictionaryArray, Int16Array, Int32Array, TimestampMillisecondArray, UInt8Array,
+    };
+    use rootfuse_attitude::units::Units;
+    let dir = Scratch::new("types");
+    let rows = 60;
+    let floats = fleet_batch(rows);
+    // Counts whose conversion is exact in f64: a gyroscope factor of 1/8, i.e. 0.125.
+    let counts = |k: usize| -> Vec<i32> {
+        (0..rows)
+            .map(|r| ((r * 7 + k * 13) % 29) as i32 - 10)
+            .collect()
+    };
+    let value = |c: i32| f64::from(c) * 0.125;
+    let mut expected_cols: Vec<(&str, ArrayRef)> = vec![
+        ("device", floats.column(0).clone()),
+        (
+            "t",
+            Arc::new(Float64Array::from(
+                (0..rows).map(|r| (r / 3) as f64 * 0.01).collect::<Vec<_>>(),
+            )),
+        ),
+    ];
+    let mut stored_cols: Vec<(&str, ArrayRef)> = vec![
+        ("device", floats.column(0).clone()),
+        (
+            "t",
+            Arc::new(TimestampMillisecondArray::from(
+                (0..rows).map(|r| (r / 3) as i64 * 10).collect::<Vec<_>>(),
+            )),
+        ),
+    ];
+    for (k, name) in ["gx", "gy", "gz"].into_iter().enumerate() {
+        let c = counts(k);
+        let mut gyr: Vec<Option<i16>> = c.iter().map(|&v| Some(v as i16)).collect();
+        let mut exp: Vec<f64> = c.iter().map(|&v| value(v)).collect();
+        if k == 1 {
+            gyr[4] = None;
+            exp[4] = f64::NAN;
+        }
+        stored_cols.push((name, Arc::new(Int16Array::from(gyr))));
+        expected_cols.push((name, Arc::new(Float64Array::from(exp))));
+    }
+    for (k, name) in ["ax", "ay", "az"].into_iter().enumerate() {
+        let c = counts(k + 3);
+        stored_cols.push((name, Arc::new(Int32Array::from(c.clone()))));
+        expected_cols.push((
+            name,
+            Arc::new(Float64Array::from(
+                c.iter().map(|&v| f64::from(v)).collect::<Vec<_>>(),
+            )),
+        ));
+    }
+    for name in ["mx", "my", "mz"] {
+        let keys = UInt8Array::from((0..rows).map(|r| (r % 3) as u8).collect::<Vec<_>>());
+        let values = Arc::new(Float64Array::from(vec![-20.5, 3.0, 41.25]));
+        let dict = DictionaryArray::try_new(keys, values.clone()).unwrap();
+        stored_cols.push((name, Arc::new(dict)));
+        expected_cols.push((
+            name,
+            Arc::new(Float64Array::from(
+                (0..rows).map(|r| values.value(r % 3)).collect::<Vec<_>>(),
+            )),
+        ));
+    }
+    let stored = dir.join("stored.arrow");
+    write_ipc_file(&stored, &[RecordBatch::try_from_iter(stored_cols).unwrap()]);
+    let plain = dir.join("plain.arrow");
+    write_ipc_file(
+        &plain,
+        &[RecordBatch::try_from_iter(expected_cols).unwrap()],
+    );
+    let read = |path: &Path, units: &str| {
+        let units: Units = units.parse().unwrap();
+        let mut reader = FleetReader::open(path, ImuGaps::Keep)
+            .unwrap()
+            .with_units(units);
+        let mut devices = Devices::default();
+        let mut blocks = Vec::new();
+        while let Some(chunk) = reader.next_chunk(&mut devices).unwrap() {
+            blocks.push(format!("{:?}", chunk.block));
+        }
+        blocks
+    };
+    // Debug text compares NaN with NaN, as `==` on the blocks would not.
+    assert_eq!(read(&stored, "gyro=0.125"), read(&plain, ""));
+    // A string column is no number; a missing column lists the columns there are.
+    let text: ArrayRef = Arc::new(StringArray::from(vec!["1"; rows]));
+    let mut cols: Vec<(&str, ArrayRef)> = (0..floats.num_columns())
+        .map(|i| {
+            (
+                [
+                    "device", "t", "gx", "gy", "gz", "ax", "ay", "az", "mx", "my", "mz",
+                ][i],
+                floats.column(i).clone(),
+            )
+        })
+        .collect();
+    cols[2].1 = text;
+    let bad = dir.join("text.arrow");
+    write_ipc_file(&bad, &[RecordBatch::try_from_iter(cols.clone()).unwrap()]);
+    let e = read_all(&bad).unwrap_err().to_string();
+    assert!(
+        e.contains("column `gx` has type Utf8, expected a number"),
+        "{e}"
+    );
+    cols.remove(2);
+    let bad = dir.join("missing.arrow");
+    write_ipc_file(&bad, &[RecordBatch::try_from_iter(cols).unwrap()]);
+    let e = read_all(&bad).unwrap_err().to_string();
+    assert!(
+        e.contains("missing required column `gx` (the file has `device`, `t`, `gy`"),
+        "{e}"
+    );
+}

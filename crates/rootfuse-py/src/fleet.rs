@@ -224,8 +224,8 @@ impl EstimateStream {
 /// or any object with `__arrow_c_stream__`) or of a Parquet or Arrow IPC file (a path, read
 /// in Rust as `rootfuse run` reads it: the fastest way in, nothing materialised first) through the batch engine's fleet runner: the
 /// columns and rules of `rootfuse run` on a Parquet or Arrow file (`t` s; `gx..gz` rad/s;
-/// `ax..az` m/s²; optional `mx..mz`; optional `device`, integer or string; float32 or
-/// float64; rows of a device in time order, devices interleaved in any way). Returns an
+/// `ax..az` m/s²; optional `mx..mz`; optional `device`, integer or string; numbers (floats,
+/// integers, decimals; `t` also a timestamp, in s); rows of a device in time order, devices interleaved in any way). Returns an
 /// `EstimateStream` with one estimate row per input row, in input order, each device's
 /// estimates equal to the CLI's bit for bit.
 ///

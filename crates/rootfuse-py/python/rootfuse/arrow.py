@@ -1,7 +1,8 @@
 """rootfuse over Apache Arrow: IMU rows in ``pyarrow`` tables, record batches or any Arrow
 stream, the columns and units of the CSV and Parquet formats (``docs/conventions.md``):
 ``t`` (s), ``gx, gy, gz`` (rad/s), ``ax, ay, az`` (m/s²), optionally ``mx, my, mz`` and
-``device`` (integer or string); float32 or float64.
+``device`` (integer or string); numbers (floats, integers such as raw counts, decimals,
+a dictionary of them; ``t`` also a timestamp, read in seconds).
 
 Everything runs in Rust: the Arrow data goes through the Arrow C stream interface (no copy
 through Python) into the batch engine's fleet runner, which runs the devices in SIMD lanes,
@@ -320,12 +321,14 @@ def run_spark(
     filter: str,
     *,
     layout: str = "bucket",
-    device_type: str = "long",
+    device_type: Optional[str] = None,
     buckets: Optional[int] = None,
     **options: Any,
 ) -> Any:
     """A Spark DataFrame of IMU rows → a DataFrame of estimates (:func:`spark_schema`), each
     device's equal to the CLI's bit for bit. Only the columns the filter reads are passed on.
+    ``device_type`` (``long`` or ``string``) follows the DataFrame's ``device`` column unless
+    given.
 
     - ``layout="bucket"`` (any layout): rows go to ``buckets`` device buckets by a hash of
       the device (``groupBy(...).applyInArrow``), and each call runs its bucket's devices in
@@ -336,6 +339,10 @@ def run_spark(
     from pyspark.sql import functions as F  # type: ignore[import-untyped, import-not-found, unused-ignore]
 
     schema_options = {k: options[k] for k in ("bias", "covariance", "flags", "dof") if k in options}
+    if device_type is None:
+        # Integer devices come back as long (`_for_spark`), string ones as they are.
+        names = {f.name: f.dataType.simpleString() for f in df.schema.fields}
+        device_type = "string" if names.get(DEVICE) == "string" else "long"
     schema = spark_schema(filter, device_type=device_type, **schema_options)
     used = _imu_columns(df.columns)
     df = df.select(*used)
