@@ -358,10 +358,37 @@ fn smooth_stretch<F: OrientationFilter<f64x2>>(
             }
         }
     }
+    let (mut quat, forward_only) = fuse_passes(&forward, &backward);
+    let tau = filter.smoothing_gyro_tau();
+    if tau > 0.0 {
+        // The backward pass has seen every sample when it reaches the first: a settled start.
+        let start = backward
+            .first()
+            .map(|b| b.0)
+            .filter(|q| q.is_finite())
+            .or(quat.first().copied());
+        if let Some(start) = start {
+            refine_by_gyro(rec, &mut quat, &bias, &step_skipped, start, tau);
+        }
+    }
+    Ok((
+        Smoothed {
+            quat,
+            forward_only,
+            rejections: filter.rejections().lane(0),
+            gyro_scale: None,
+        },
+        Vec::new(),
+    ))
+}
+
+/// The passes fused sample by sample (see the module documentation), with the number of
+/// samples that could not be fused and kept the forward estimate.
+fn fuse_passes(forward: &Pass, backward: &Pass) -> (Vec<Quat<f64>>, usize) {
     // The fusion of one sample does not depend on any other: four at a time in `f64x4`
     // lanes (bit for bit the scalar fusion, by the `Lane` contract).
     let mut forward_only = 0;
-    let mut quat = Vec::with_capacity(n);
+    let mut quat = Vec::with_capacity(forward.len());
     for (f, b) in forward.chunks(4).zip(backward.chunks(4)) {
         let at = |i: usize| i.min(f.len() - 1);
         let q = |pass: &[(Quat<f64>, Option<Mat<f64, 3, 3>>)]| {
@@ -386,27 +413,7 @@ fn smooth_stretch<F: OrientationFilter<f64x2>>(
             }
         }
     }
-    let tau = filter.smoothing_gyro_tau();
-    if tau > 0.0 {
-        // The backward pass has seen every sample when it reaches the first: a settled start.
-        let start = backward
-            .first()
-            .map(|b| b.0)
-            .filter(|q| q.is_finite())
-            .or(quat.first().copied());
-        if let Some(start) = start {
-            refine_by_gyro(rec, &mut quat, &bias, &step_skipped, start, tau);
-        }
-    }
-    Ok((
-        Smoothed {
-            quat,
-            forward_only,
-            rejections: filter.rejections().lane(0),
-            gyro_scale: None,
-        },
-        Vec::new(),
-    ))
+    (quat, forward_only)
 }
 
 /// Refines `quat` by the gyroscope (rates minus `bias`) above `1/(2π·tau)`, zero-phase (see

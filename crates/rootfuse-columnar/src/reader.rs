@@ -4,7 +4,7 @@ use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
 use crate::kind::{self, Kind};
 use crate::mapped::{Footer, IpcFile, IpcStream, Mapped, StreamEnd};
-use crate::schema::{check_schema, column_list, float_values, type_error};
+use crate::schema::{MAG, REQUIRED, check_schema, column_list, float_values, type_error};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, RecordBatchReader};
 use arrow::datatypes::{DataType, Int64Type};
 use parquet::arrow::ProjectionMask;
@@ -22,9 +22,6 @@ use std::path::{Path, PathBuf};
 /// Rows per block read (and per record batch written): a few MB per block whatever the
 /// length of the file.
 pub const BLOCK_ROWS: usize = 65_536;
-
-pub(crate) const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
-pub(crate) const MAG: [&str; 3] = ["mx", "my", "mz"];
 
 /// A device as written in the file: an integer or a string.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]

@@ -2,11 +2,15 @@
 
 use crate::DEVICE;
 use crate::error::ColumnarError;
-use crate::reader::{MAG, REQUIRED};
 use arrow::array::{Array, ArrayRef, AsArray};
 use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
 use std::borrow::Cow;
 use std::path::Path;
+
+/// The columns every fleet file has.
+pub(crate) const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
+/// The magnetometer's columns: all three or none.
+pub(crate) const MAG: [&str; 3] = ["mx", "my", "mz"];
 
 /// Values of a numeric column as `f64`, nulls as NaN; `None` for a type [`numeric`] does not
 /// accept. Floats are read as they are, integers (raw counts, a time in ms) and decimals
