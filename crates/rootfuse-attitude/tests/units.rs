@@ -138,6 +138,32 @@ fn raw_counts_and_dead_sensors_are_named() {
     );
 }
 
+/// Turns about the vertical hardly tilt the gravity direction; with a magnetometer, the
+/// field's turning tells a gyroscope in °/s all the same (decisive: the run is refused), and
+/// says nothing against rad/s. Without one, the check stays where it was.
+#[test]
+fn yaw_motion_is_judged_by_the_magnetic_field() {
+    for seed in 0..3 {
+        let rec = rootfuse_eval::sim::scenario("vehicle", seed, 120.0, 100.0).unwrap();
+        assert_eq!(findings(&rec, ""), [], "vehicle {seed}, rad/s");
+        let deg = written_in(&rec, "gyro=deg/s");
+        let found = findings(&deg, "");
+        assert_eq!(found.len(), 1, "vehicle {seed} in deg/s: {found:?}");
+        assert!(
+            found[0].decisive && found[0].evidence.contains("magnetic field direction"),
+            "vehicle {seed} in deg/s: {}",
+            found[0]
+        );
+        assert_eq!(findings(&deg, "gyro=deg/s"), [], "vehicle {seed}, declared");
+        let six = rootfuse_eval::sim::scenario("vehicle-6d", seed, 120.0, 100.0).unwrap();
+        let found = findings(&written_in(&six, "gyro=deg/s"), "");
+        assert!(
+            found.iter().all(|f| !f.evidence.contains("magnetic")),
+            "vehicle-6d {seed}: {found:?}"
+        );
+    }
+}
+
 #[test]
 fn at_rest_the_gyroscope_unit_is_not_guessed() {
     // No tilting, nothing to compare the gyroscope with: no finding either way.
@@ -154,5 +180,9 @@ fn every_broad_trial_in_other_units_is_named() {
     let Some(dir) = broad_dir() else { return };
     for rec in rootfuse_io::read_dir(&dir).unwrap() {
         every_unit_is_named(&rec);
+        // Against the motion (gravity's turning or, where linear acceleration leaves that
+        // undecided, the field's), not only by rates no gyroscope measures.
+        let found = findings(&written_in(&rec, "gyro=deg/s"), "");
+        assert!(found[0].decisive, "{}: {}", rec.name, found[0]);
     }
 }

@@ -107,10 +107,11 @@ pub const MAX_PLAUSIBLE_RATE: f64 = 35.0;
 pub const CHECK_SAMPLES: u64 = 200_000;
 
 /// A check stops earlier, once it has this many samples and its gyroscope test has seen
-/// `DECIDED_TURN` (10 rad) of tilting: every median then sits in its bin and the gyroscope's
-/// explained shares average hundreds of windows, so more samples of the same file change no
-/// finding, and a long fleet channel no longer pays the check at every sample (it cost a
-/// fifth of `rootfuse run` on a fleet of 10-minute devices).
+/// `DECIDED_TURN` (10 rad) of tilting (or of the magnetic field's turning, where a unit
+/// explains it): every median then sits in its bin and the gyroscope's explained shares
+/// average hundreds of windows, so more samples of the same file change no finding, and a
+/// long fleet channel no longer pays the check at every sample (it cost a fifth of
+/// `rootfuse run` on a fleet of 10-minute devices).
 pub const DECIDED_SAMPLES: u64 = 10_000;
 
 /// Tilting (rad, summed over judged windows) that, with [`DECIDED_SAMPLES`], ends a check:
@@ -151,6 +152,12 @@ const CLEARLY_BETTER: f64 = 0.2;
 /// unit the prediction explains much of the turn (linear acceleration and noise the rest); in
 /// one off by 57 it explains none. Windows whose |a| changes by more than 10 % (linear
 /// acceleration) or that turn less than [`MIN_WINDOW_TURN`] (noise) are not judged.
+///
+/// The magnetic field's direction is fixed in the earth too: the same test on the
+/// magnetometer's readings judges the gyroscope where the gravity direction hardly turns (a
+/// vehicle or turntable turning about the vertical). A disturbed field changes |m| (such
+/// windows are not judged) or explains less under every unit (undecided, never wrong: a unit
+/// 57 times too small predicts almost no turn and explains none).
 #[derive(Clone, Debug)]
 struct TiltTest {
     /// Each candidate unit and its factor from a raw reading × raw time step to radians.
@@ -197,6 +204,8 @@ impl TiltTest {
         }
     }
 
+    /// One sample: `gyr` the raw rate, `acc` the vector whose direction is fixed in the earth
+    /// (specific force at rest, or the magnetic field).
     fn add(&mut self, dt: f64, gyr: Vec3<f64>, acc: Vec3<f64>) {
         let turn = gyr * dt;
         if !(acc.norm().is_finite() && turn.norm().is_finite()) {
@@ -261,6 +270,19 @@ impl TiltTest {
                 .collect()
         })
     }
+
+    /// The declared unit's share and the unit that explains the most with its share, when
+    /// one explains at least [`MIN_EXPLAINED`] (much linear acceleration or a disturbed field
+    /// leaves the test undecided).
+    fn best(&self) -> Option<(f64, (Unit, f64))> {
+        let explained = self.explained()?;
+        let best = explained
+            .iter()
+            .copied()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|(_, share)| *share >= MIN_EXPLAINED)?;
+        Some((explained[0].1, best))
+    }
 }
 
 /// `u` turned as a direction fixed in the earth turns in the sensor frame while the sensor
@@ -295,8 +317,10 @@ pub struct UnitCheck {
     acc: LogHistogram,
     mag: LogHistogram,
     gyr: LogHistogram,
-    /// The gyroscope-unit test, started once the time unit is known.
+    /// The gyroscope-unit test on the gravity direction, started once the time unit is known.
     tilt: Option<TiltTest>,
+    /// The same test on the magnetic field's direction (9D samples only).
+    field: Option<TiltTest>,
     /// Enough was seen ([`DECIDED_SAMPLES`], [`DECIDED_TURN`]): later samples are ignored.
     decided: bool,
 }
@@ -313,6 +337,7 @@ impl UnitCheck {
             mag: LogHistogram::new(),
             gyr: LogHistogram::new(),
             tilt: None,
+            field: None,
             decided: false,
         }
     }
@@ -327,7 +352,11 @@ impl UnitCheck {
         }
         self.samples += 1;
         if self.samples.is_multiple_of(DECIDED_EVERY) && self.samples >= DECIDED_SAMPLES {
-            self.decided = self.tilt.as_ref().is_some_and(|t| t.turned >= DECIDED_TURN);
+            // The field decides only where a unit explains it: a disturbed field's turning
+            // must not end the check before the gravity direction has turned.
+            self.decided = self.tilt.as_ref().is_some_and(|t| t.turned >= DECIDED_TURN)
+                || (self.field.as_ref())
+                    .is_some_and(|t| t.turned >= DECIDED_TURN && t.best().is_some());
         }
         let dt = t - self.previous_t;
         if dt.is_finite() && dt > 0.0 {
@@ -345,16 +374,23 @@ impl UnitCheck {
             && let Some(median) = self.dt.quantile(0.5)
         {
             let time_factor = self.time_factor();
-            self.tilt = Some(TiltTest::new(
+            let test = TiltTest::new(
                 self.declared.get(Sensor::Gyroscope),
                 time_factor,
                 median * time_factor,
-            ));
+            );
+            self.field = Some(test.clone());
+            self.tilt = Some(test);
         }
         if let Some(tilt) = &mut self.tilt
             && dt > 0.0
         {
             tilt.add(dt, gyr, acc);
+        }
+        if let (Some(field), Some(m)) = (&mut self.field, mag)
+            && dt > 0.0
+        {
+            field.add(dt, gyr, m);
         }
     }
 
@@ -511,25 +547,18 @@ impl UnitCheck {
             });
         }
         let deg = Unit::parse(Sensor::Gyroscope, "deg/s")?;
-        // The unit that explains the most of the tilting, if one explains enough of it (much
-        // linear acceleration leaves the test undecided).
-        let tilt = self
-            .tilt
-            .as_ref()
-            .and_then(TiltTest::explained)
-            .and_then(|explained| {
-                let best = explained
-                    .iter()
-                    .copied()
-                    .max_by(|a, b| a.1.total_cmp(&b.1))
-                    .filter(|(_, share)| *share >= MIN_EXPLAINED)?;
-                Some((explained[0].1, best))
+        // The unit that explains the most of the gravity direction's turning, else of the
+        // magnetic field's (gravity hardly turns under rotation about the vertical).
+        let judged = [(&self.tilt, "gravity"), (&self.field, "magnetic field")]
+            .into_iter()
+            .find_map(|(test, what)| {
+                let test = test.as_ref()?;
+                Some((test.best()?, test.turned, what))
             });
-        if let Some((declared_share, best)) = tilt {
+        if let Some(((declared_share, best), turned, what)) = judged {
             if best.1 < declared_share + CLEARLY_BETTER {
                 return None;
             }
-            let turned = self.tilt.as_ref().map_or(0.0, |t| t.turned);
             return Some(UnitFinding {
                 sensor: Sensor::Gyroscope,
                 declared,
@@ -537,7 +566,7 @@ impl UnitCheck {
                 dead: false,
                 decisive: true,
                 evidence: format!(
-                    "as {declared} its readings explain {:.0} % of the {} rad the gravity direction turned, as {} {:.0} %",
+                    "as {declared} its readings explain {:.0} % of the {} rad the {what} direction turned, as {} {:.0} %",
                     100.0 * declared_share.max(0.0),
                     short(turned),
                     best.0,
@@ -597,7 +626,7 @@ pub struct UnitFinding {
     /// is in question.
     pub dead: bool,
     /// The readings were tested against the motion (the gyroscope against how the gravity
-    /// direction turned) and the declared unit clearly failed: a run in it is known to be
+    /// direction, or the magnetic field's, turned) and the declared unit clearly failed: a run in it is known to be
     /// wrong, where a magnitude outside its usual range may still be a real one.
     pub decisive: bool,
 }
