@@ -66,6 +66,23 @@ pub enum CalibrationError {
         /// The accepted maximum.
         limit: f64,
     },
+    /// A three-dimensional model was fitted to readings that cover too little of the sphere of
+    /// directions ([`FitQuality::coverage`](crate::FitQuality::coverage) below
+    /// [`FitOptions::min_coverage`](crate::FitOptions::min_coverage)): the fit extrapolates
+    /// the rest of the ellipsoid from a cap of it.
+    #[error(
+        "the readings cover {:.0} % of the sphere of directions, at least {:.0} % needed: a {model} fit to part of it extrapolates the rest and can make heading far worse; turn the sensor through more orientations (each axis up and down), or lower min_coverage",
+        100.0 * coverage,
+        100.0 * limit
+    )]
+    LowCoverage {
+        /// Share of the direction cells with data.
+        coverage: f64,
+        /// The accepted minimum.
+        limit: f64,
+        /// The model the condition test allowed.
+        model: FittedModel,
+    },
     /// Fewer rest phases than the accelerometer calibration needs.
     #[error("{found} rest phases found; at least {needed} (different orientations) are needed")]
     TooFewRestPhases {

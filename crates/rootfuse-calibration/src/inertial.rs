@@ -372,7 +372,9 @@ pub struct AccelerometerFit {
 }
 
 /// The six-position method: fits `a_cal = S·(a_raw − h)` with `|a_cal| = gravity` to the
-/// readings of the rest phases (at least six, in different orientations).
+/// readings of the rest phases (at least six, in different orientations). Six orientations
+/// cover six of the sphere's direction cells by design: `options.min_coverage` is not
+/// applied (the count of rest phases stands for it).
 pub fn accelerometer(
     acc: &[Vec3<f64>],
     phases: &[RestPhase],
@@ -391,6 +393,7 @@ pub fn accelerometer(
         &samples,
         &FitOptions {
             norm: Some(gravity),
+            min_coverage: 0.0,
             ..*options
         },
     )?;

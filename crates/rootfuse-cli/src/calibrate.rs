@@ -5,13 +5,20 @@
 //! `y_cal = S·(y_raw − h)` as `matrix` (S, row-major), `offset` (h, raw units) and `norm`,
 //! plus the fitted model and quality for the record. Calibrating another sensor into an
 //! existing file replaces that sensor's section and keeps the others.
+//!
+//! Readings are converted by `--units` first, as `rootfuse run` converts them before it
+//! applies a calibration: the calibration is in the filters' units (µT, m/s², rad/s), and
+//! each section records the unit its readings were written in (`units`), which `run` checks
+//! against its own `--units`.
+use crate::checks::parse_units;
 use clap::{Args, ValueEnum};
+use rootfuse_attitude::units::{Sensor as UnitSensor, Units};
 use rootfuse_attitude::{Mat, Recording, SensorCalibration, Vec3};
 use rootfuse_calibration::{
     EllipsoidFit, FitOptions, RestOptions, RestPhase, accelerometer, fit_ellipsoid, gyro_bias,
     rest_phases, rest_search,
 };
-use rootfuse_io::{ImuGaps, read_csv_with, temporary_path};
+use rootfuse_io::{ImuGaps, read_csv_in, temporary_path};
 use serde_json::{Map, Value, json};
 use std::path::{Path, PathBuf};
 
@@ -29,12 +36,19 @@ pub enum Sensor {
 
 impl Sensor {
     fn key(self) -> &'static str {
+        self.unit_sensor().key()
+    }
+
+    /// The sensor as `--units` names it.
+    fn unit_sensor(self) -> UnitSensor {
         match self {
-            Sensor::Mag => "mag",
-            Sensor::Acc => "acc",
-            Sensor::Gyro => "gyro",
+            Sensor::Mag => UnitSensor::Magnetometer,
+            Sensor::Acc => UnitSensor::Accelerometer,
+            Sensor::Gyro => UnitSensor::Gyroscope,
         }
     }
+
+    const ALL: [Sensor; 3] = [Sensor::Mag, Sensor::Acc, Sensor::Gyro];
 }
 
 /// Options of `rootfuse calibrate`.
@@ -49,10 +63,20 @@ pub struct CalibrateArgs {
     /// The calibration file to write (its other sensors' sections are kept).
     #[arg(long, default_value = "calibration.json")]
     out: PathBuf,
-    /// Magnetometer: the field norm the calibrated readings should have (e.g. the local field
-    /// strength in the recording's unit); default: scale S to det S = 1.
+    /// Magnetometer: the field norm the calibrated readings should have (the local field
+    /// strength, µT: after `--units`); default: scale S to det S = 1.
     #[arg(long)]
     norm: Option<f64>,
+    /// Magnetometer: the smallest share of the sphere of directions the readings must cover
+    /// for a three-dimensional fit (a fit to a cap of it extrapolates the rest: on BROAD
+    /// trials, fits at 4–33 % made the 9D error 3–165°).
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.4)]
+    min_coverage: f64,
+    /// The units the files are written in, as given to `rootfuse run --units` (readings are
+    /// converted first; the calibration file records them and `run` checks its own against
+    /// them).
+    #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
+    units: Units,
     /// Accelerometer: gravity, m/s².
     #[arg(long, default_value_t = 9.81)]
     gravity: f64,
@@ -63,7 +87,7 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
     let recs = args
         .files
         .iter()
-        .map(|f| read_csv_with(f, ImuGaps::Keep).map_err(|e| e.to_string()))
+        .map(|f| read_csv_in(f, ImuGaps::Keep, args.units).map_err(|e| e.to_string()))
         .collect::<Result<Vec<_>, _>>()?;
     let section = match args.sensor {
         Sensor::Mag => {
@@ -77,6 +101,7 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
             }
             let options = FitOptions {
                 norm: args.norm,
+                min_coverage: args.min_coverage,
                 ..FitOptions::default()
             };
             let fit = fit_ellipsoid(&mag, &options).map_err(|e| format!("mag: {e}"))?;
@@ -166,6 +191,8 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
     };
     root.insert("format".into(), json!("rootfuse-calibration"));
     root.insert("version".into(), json!(1));
+    let mut section = section;
+    section["units"] = json!(args.units.get(args.sensor.unit_sensor()).to_string());
     root.insert(args.sensor.key().into(), section);
     write_json_atomic(&args.out, &Value::Object(root))?;
     out!("written: {}", args.out.display());
@@ -290,6 +317,11 @@ fn write_json_atomic(path: &Path, value: &Value) -> Result<(), String> {
 /// The calibrations of a file written by `rootfuse calibrate` (absent sensors: `None`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CalibrationSet {
+    /// The file, for messages.
+    pub file: PathBuf,
+    /// Per section present (`mag`, `acc`, `gyro`), the unit its readings were written in (a
+    /// file without one was fitted to readings as written, taken as the filters' units).
+    pub units: Vec<(&'static str, String)>,
     /// Magnetometer.
     pub mag: Option<SensorCalibration<f64>>,
     /// Accelerometer.
@@ -352,7 +384,18 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationSet, String> {
             norm,
         }))
     };
+    let units = Sensor::ALL
+        .into_iter()
+        .filter_map(|s| {
+            let section = root.get(s.key())?;
+            let unit = section.get("units").and_then(Value::as_str);
+            let si = Units::default().get(s.unit_sensor()).to_string();
+            Some((s.key(), unit.map_or(si, str::to_string)))
+        })
+        .collect();
     Ok(CalibrationSet {
+        file: path.to_path_buf(),
+        units,
         mag: section("mag")?,
         acc: section("acc")?,
         gyro: section("gyro")?,
@@ -366,6 +409,24 @@ pub fn apply_calibration(rec: &mut Recording, set: &CalibrationSet) {
 }
 
 impl CalibrationSet {
+    /// Refuses a run whose `--units` read a sensor in another unit than its calibration was
+    /// fitted on: the calibration applies to converted readings, in the filters' units.
+    pub fn check_units(&self, units: &Units) -> Result<(), String> {
+        for sensor in Sensor::ALL {
+            let Some((key, fitted)) = self.units.iter().find(|(k, _)| *k == sensor.key()) else {
+                continue;
+            };
+            let read = units.get(sensor.unit_sensor()).to_string();
+            if *fitted != read {
+                return Err(format!(
+                    "{}: the {key} calibration was fitted on readings in {fitted}, and this run reads them in {read}: give both `rootfuse calibrate` and `rootfuse run` the same --units (calibrate again with --units {key}={read})",
+                    self.file.display()
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Applies each sensor's calibration (`y_cal = S·(y_raw − h)`) to its readings in place;
     /// sensors without a calibration are left as they are. Used on whole recordings
     /// (`--offline`) and on the blocks `run` streams.

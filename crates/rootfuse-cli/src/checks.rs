@@ -159,3 +159,9 @@ fn advice(f: &UnitFinding) -> String {
         format!("{f}: run with --units {}", f.declaration())
     }
 }
+
+/// `--units` on the command line.
+pub fn parse_units(list: &str) -> Result<rootfuse_attitude::units::Units, String> {
+    list.parse()
+        .map_err(|e: rootfuse_attitude::units::UnitsError| e.to_string())
+}

@@ -1,5 +1,5 @@
 //! `rootfuse eval`: the BROAD metrics of estimate files against ground truth.
-use crate::run::parse_units;
+use crate::checks::parse_units;
 use clap::Args;
 use rootfuse_attitude::Quat;
 use rootfuse_attitude::units::{Sensor, Units};

@@ -1,7 +1,7 @@
 //! `rootfuse run`: filter IMU files (CSV, Parquet, Arrow), write one estimate file per input,
 //! streaming (see [`crate::stream`]).
 use crate::Outcome;
-use crate::checks::InputChecks;
+use crate::checks::{InputChecks, parse_units};
 use crate::engine::{Columns, PrecisionArg};
 use crate::filter_args::FilterArgs;
 use crate::outputs::{Ledger, missing_folders, remove_empty, source_of};
@@ -136,6 +136,9 @@ pub fn run(args: &RunArgs) -> Result<Outcome, String> {
             .as_deref()
             .map(crate::calibrate::read_calibration)
             .transpose()?;
+        if let Some(set) = &calibration {
+            set.check_units(&args.units)?;
+        }
         let device_specs = args
             .device_params
             .as_deref()
@@ -301,12 +304,6 @@ fn report(args: &RunArgs, totals: &Totals, seconds: f64) -> Outcome {
     } else {
         Outcome::Success
     }
-}
-
-/// `--units` on the command line.
-pub fn parse_units(list: &str) -> Result<Units, String> {
-    list.parse()
-        .map_err(|e: rootfuse_attitude::units::UnitsError| e.to_string())
 }
 
 /// `--format` on the command line.

@@ -1291,6 +1291,7 @@ fn calibrate_writes_what_run_applies() {
         "{h:?}"
     );
     assert_eq!(json["mag"]["model"], "full");
+    assert_eq!(json["mag"]["units"], "uT");
     assert!(json["gyro"]["offset"].is_array() && json["gyro"]["norm"].is_null());
     let out_dir = dir.join("out");
     let o_dir = out_dir.to_str().unwrap();
@@ -1307,6 +1308,86 @@ fn calibrate_writes_what_run_applies() {
         ])
     };
     let o = run_calibrated();
+    assert!(o.status.success(), "{:?}", text(&o));
+    // The same readings written in nT: calibrated with the run's --units, the offset is the
+    // µT one (the calibration applies to converted readings); a run that reads them in
+    // another unit than the calibration saw is refused.
+    let mut in_nt = rec.clone();
+    for m in in_nt.mag.as_mut().unwrap() {
+        *m = *m * 1000.0;
+    }
+    let file_nt = dir.join("rec_nt.csv");
+    write_recording(&file_nt, &in_nt).unwrap();
+    let cal_nt = dir.join("cal_nt.json");
+    let (f_nt, c_nt) = (file_nt.to_str().unwrap(), cal_nt.to_str().unwrap());
+    let o = run(&[
+        "calibrate",
+        "mag",
+        f_nt,
+        "--norm",
+        "50",
+        "--units",
+        "mag=nT",
+        "--out",
+        c_nt,
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let json_nt: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal_nt).unwrap()).unwrap();
+    assert_eq!(json_nt["mag"]["units"], "nT");
+    let h_nt = json_nt["mag"]["offset"][0].as_f64().unwrap();
+    assert!(
+        (h_nt - h[0]).abs() < 1e-6 * h[0].abs(),
+        "{h_nt} µT vs {} µT",
+        h[0]
+    );
+    let run_nt = |cal: &str| {
+        run(&[
+            "run",
+            f_nt,
+            "--units",
+            "mag=nT",
+            "--calibration",
+            cal,
+            "--out",
+            o_dir,
+            "--force",
+        ])
+    };
+    let o = run_nt(c_nt);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let o = run_nt(c);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        err.contains("fitted on readings in uT, and this run reads them in nT")
+            && err.contains("--units mag=nT"),
+        "{err}"
+    );
+    // Motion that covers a cap of the sphere of directions: refused, unless allowed.
+    let cap = rootfuse_eval::sim::scenario("handheld-translation", 1, 30.0, 100.0).unwrap();
+    let file_cap = dir.join("cap.csv");
+    write_recording(&file_cap, &cap).unwrap();
+    let f_cap = file_cap.to_str().unwrap();
+    let cal_cap = dir.join("cap.json");
+    let c_cap = cal_cap.to_str().unwrap();
+    let o = run(&["calibrate", "mag", f_cap, "--out", c_cap]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        err.contains("% of the sphere of directions, at least 40 % needed"),
+        "{err}"
+    );
+    assert!(!cal_cap.exists(), "nothing written");
+    let o = run(&[
+        "calibrate",
+        "mag",
+        f_cap,
+        "--min-coverage",
+        "0",
+        "--out",
+        c_cap,
+    ]);
     assert!(o.status.success(), "{:?}", text(&o));
     // A broken calibration file: refused before anything runs.
     std::fs::write(

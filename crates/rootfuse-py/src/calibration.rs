@@ -19,14 +19,17 @@ use rootfuse_calibration::{FitOptions, fit_ellipsoid};
 /// determined), `refused` (list of `(model, condition number)` the data could not determine),
 /// `residual_rms_relative`, `residual_max_relative`, `coverage` (share of direction cells with
 /// data), `direction_spread`, `condition`, `samples`, `skipped_non_finite`, `outliers` (the input rows left out as outliers). ValueError for
-/// too few samples, a constant reading, a saturated axis, a quadric that is no ellipsoid or a
-/// residual above 5 % — a refusal, never a wrong calibration.
+/// too few samples, a constant reading, a saturated axis, a quadric that is no ellipsoid, a
+/// residual above 5 % or a three-dimensional fit to readings covering less than
+/// `min_coverage` of the sphere of directions (default 0.4; an accelerometer's six rest
+/// positions need 0) — a refusal, never a wrong calibration.
 #[pyfunction]
-#[pyo3(signature = (samples, *, norm=None))]
+#[pyo3(signature = (samples, *, norm=None, min_coverage=0.4))]
 pub fn fit_ellipsoid_calibration<'py>(
     py: Python<'py>,
     samples: &Bound<'py, PyAny>,
     #[pyo3(from_py_with = real_or_none)] norm: Option<f64>,
+    min_coverage: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let a = float_array(samples, "samples")?;
     if !matches!(a.shape.as_slice(), [_, 3]) {
@@ -42,6 +45,7 @@ pub fn fit_ellipsoid_calibration<'py>(
         .collect();
     let options = FitOptions {
         norm,
+        min_coverage,
         ..FitOptions::default()
     };
     let fit = py

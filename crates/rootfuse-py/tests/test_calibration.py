@@ -48,3 +48,15 @@ def test_bad_input_is_refused():
         rf.fit_ellipsoid_calibration(np.ones((5, 3)))
     with pytest.raises(ValueError, match="fit_ellipsoid_calibration"):
         rf.fit_ellipsoid_calibration(np.tile([10.0, 20.0, 30.0], (100, 1)))
+
+
+def test_a_cap_of_directions_is_refused_unless_allowed():
+    # Directions within ~35° of one axis: the condition test passes, the fit extrapolates.
+    d = _directions(4000, 4)
+    cap = d[d[:, 2] > 0.82]
+    raw = 50.0 * cap + np.array([12.0, -7.0, 3.0])
+    raw += np.random.default_rng(5).normal(scale=0.5, size=raw.shape)
+    with pytest.raises(ValueError, match=r"cover \d+ % of the sphere of directions, at least 40 % needed"):
+        rf.fit_ellipsoid_calibration(raw)
+    fit = rf.fit_ellipsoid_calibration(raw, min_coverage=0.0)
+    assert fit["coverage"] < 0.5

@@ -351,9 +351,13 @@ class Rls:
     def health(self) -> Dict[str, Any]: ...
 
 def rls_forms() -> List[str]: ...
-def fit_ellipsoid_calibration(samples: _FloatArray, *, norm: Optional[float] = None) -> Dict[str, Any]:
+def fit_ellipsoid_calibration(
+    samples: _FloatArray, *, norm: Optional[float] = None, min_coverage: float = 0.4
+) -> Dict[str, Any]:
     """y_cal = S·(y_raw − h) from raw (N, 3) readings: ``matrix``, ``offset``, ``norm``,
-    ``model`` (what the data determined), ``refused``, quality figures; ValueError on refusal."""
+    ``model`` (what the data determined), ``refused``, quality figures; ValueError on refusal,
+    also for a three-dimensional fit to readings covering less than ``min_coverage`` of the
+    sphere of directions (it extrapolates the rest)."""
 
 def lstsq(
     h: _FloatArray,
