@@ -76,6 +76,28 @@ fn utf16_and_utf32_are_refused_by_name() {
     }
 }
 
+/// Lines ending in a carriage return alone (classic Mac OS) are named, with the conversion:
+/// the reader took the whole file for its header ("expected 15 fields, found 13"). CRLF and
+/// a file whose last line ends in CR still read.
+#[test]
+fn carriage_return_line_endings_are_named() {
+    let dir = temp_dir("cr");
+    let p = dir.join("cr.csv");
+    std::fs::write(&p, COMMA.replace('\n', "\r")).unwrap();
+    let e = read_csv(&p).unwrap_err();
+    assert!(matches!(e, ReadError::CarriageReturns { .. }), "{e}");
+    assert!(e.to_string().contains("convert them to LF or CRLF"), "{e}");
+    assert!(read_estimates(&p).is_err());
+    for (name, text) in [
+        ("crlf", COMMA.replace('\n', "\r\n")),
+        ("last", format!("{}\r", COMMA.trim_end())),
+    ] {
+        let p = dir.join(format!("{name}.csv"));
+        std::fs::write(&p, text).unwrap();
+        assert_eq!(read_csv(&p).unwrap().len(), 2, "{name}");
+    }
+}
+
 /// Binary files given to the CSV reader are named for what they are (their NUL bytes once
 /// made them "UTF-16"), with what to do instead.
 #[test]

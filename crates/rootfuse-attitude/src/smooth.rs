@@ -67,7 +67,8 @@ pub struct Smoothed {
     /// Samples where the fusion was not possible (a covariance not finite or not positive
     /// definite, or an estimate not finite) and the forward estimate was kept as it is.
     pub forward_only: usize,
-    /// What the forward run skipped, by reason (the backward run sees the same samples).
+    /// What the forward run skipped, by reason (the backward run sees the same samples); a
+    /// recording with gaps adds up its stretches' runs and counts each gap as a skipped step.
     pub rejections: Rejections<f64>,
     /// The gyroscope's scale error per sensor axis (a fraction, `ω_measured = (1 + s)·ω`) by
     /// which both passes' readings were divided ([`smooth_spec`] with
@@ -245,8 +246,11 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 /// and confidently so, and the fusion would spread that into the other side (30 s missing
 /// from a slow rotation moved the smoothed estimates before it by 18°). The first run over
 /// the whole recording finds the gaps; with any, each stretch then runs again, so a
-/// recording with gaps costs twice one without. [`Smoothed::rejections`] is the whole
-/// run's, the gaps counted in it.
+/// recording with gaps costs twice one without. [`Smoothed::rejections`] adds up the
+/// stretches' own and counts each gap as a skipped step. A stretch of one sample (between
+/// two gaps, or before or after one) is smoothed as that sample held for [`HELD_STEPS`] of
+/// the recording's median step: the filter settles on its accelerometer and magnetometer (a
+/// lone sample has no step of its own, and was left at the filter's initial state).
 ///
 /// # Errors
 /// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
@@ -261,18 +265,73 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     }
     let mut quat = Vec::with_capacity(rec.len());
     let mut forward_only = 0;
+    let mut rejections = Rejections::<f64>::default();
+    rejections.dt[0] = gaps.len() as u64;
     let mut from = 0;
     for end in gaps.into_iter().chain([rec.len()]) {
-        let (part, _) = smooth_stretch(&rec.slice(from..end), &mut build, nine_d)?;
-        quat.extend(part.quat);
-        forward_only += part.forward_only;
+        let stretch = match end - from {
+            1 => held_still(rec, from, median_step(rec)),
+            _ => rec.slice(from..end),
+        };
+        let (part, _) = smooth_stretch(&stretch, &mut build, nine_d)?;
+        quat.extend(part.quat.into_iter().take(end - from));
+        forward_only += part.forward_only.min(end - from);
+        add_counts(&mut rejections, &part.rejections);
         from = end;
     }
     Ok(Smoothed {
         quat,
         forward_only,
+        rejections,
         ..whole
     })
+}
+
+/// Copies of a lone sample the smoother runs over: one step, which the filter starts from
+/// (a lone sample tilted 60° came out within 0.7° in tilt, 2.6° in all; 50 copies did no
+/// better).
+const HELD_STEPS: usize = 2;
+
+/// Sample `i` of `rec` repeated [`HELD_STEPS`] times, `step` s apart: a stretch of one sample
+/// made one the filter can settle on. The sample itself comes first.
+fn held_still(rec: &Recording, i: usize, step: f64) -> Recording {
+    let mut held = rec.slice(i..i + 1);
+    for k in 1..HELD_STEPS {
+        held.t.push(held.t[0] + step * k as f64);
+        held.gyr.push(held.gyr[0]);
+        held.acc.push(held.acc[0]);
+        if let Some(m) = &mut held.mag {
+            m.push(m[0]);
+        }
+    }
+    held.truth = None;
+    held.use_mask = None;
+    held
+}
+
+/// The median of `rec`'s positive, finite time steps (0.01 s if it has none).
+fn median_step(rec: &Recording) -> f64 {
+    let mut steps: Vec<f64> = rec
+        .t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if steps.is_empty() {
+        return 0.01;
+    }
+    let mid = steps.len() / 2;
+    *steps.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Adds `part`'s counts (lane 0) to `total`'s.
+fn add_counts(total: &mut Rejections<f64>, part: &Rejections<f64>) {
+    total.dt[0] += part.dt[0];
+    total.gyr[0] += part.gyr[0];
+    total.acc[0] += part.acc[0];
+    total.mag[0] += part.mag[0];
+    total.gated[0] += part.gated[0];
+    total.mag_disturbed[0] += part.mag_disturbed[0];
 }
 
 /// [`forward_backward`] over `rec` as one stretch, or, where the forward lane skipped a
@@ -329,9 +388,7 @@ fn smooth_stretch<F: OrientationFilter<f64x2>>(
         bias.push(filter.bias().lane(0));
         step_skipped.push(Skipped::of_lane_0(&filter.flags()));
     }
-    let gaps: Vec<usize> = (1..n)
-        .filter(|&k| step_skipped[k] == Some(Skipped::Step) && rec.dt(k) > 0.0)
-        .collect();
+    let gaps = gaps(rec, &step_skipped);
     if !gaps.is_empty() {
         // Each stretch is smoothed on its own: no estimates to form here.
         let skipped = Smoothed {
@@ -380,6 +437,25 @@ fn smooth_stretch<F: OrientationFilter<f64x2>>(
         },
         Vec::new(),
     ))
+}
+
+/// The samples that follow a gap: skipped for their step, which, measured from the last
+/// sample with a finite time (a time that is not a number hides no gap), is positive.
+fn gaps(rec: &Recording, step_skipped: &[Option<Skipped>]) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut last = rec.t.first().copied().filter(|t| t.is_finite());
+    for (k, &t) in rec.t.iter().enumerate().skip(1) {
+        if step_skipped.get(k) == Some(&Some(Skipped::Step))
+            && let Some(previous) = last
+            && t - previous > 0.0
+        {
+            out.push(k);
+        }
+        if t.is_finite() {
+            last = Some(t);
+        }
+    }
+    out
 }
 
 /// The passes fused sample by sample (see the module documentation), with the number of

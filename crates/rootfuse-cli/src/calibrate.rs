@@ -10,10 +10,11 @@
 //! applies a calibration: the calibration is in the filters' units (µT, m/s², rad/s), and
 //! each section records the unit its readings were written in (`units`), which `run` checks
 //! against its own `--units`.
-use crate::checks::parse_units;
+use crate::checks::{InputChecks, parse_units};
 use clap::{Args, ValueEnum};
-use rootfuse_attitude::units::{Sensor as UnitSensor, Units};
+use rootfuse_attitude::units::{Sensor as UnitSensor, Unit, Units};
 use rootfuse_attitude::{Mat, Recording, SensorCalibration, Vec3};
+use rootfuse_batch::RejectionTotals;
 use rootfuse_calibration::{
     EllipsoidFit, FitOptions, RestOptions, RestPhase, accelerometer, fit_ellipsoid, gyro_bias,
     rest_phases, rest_search,
@@ -89,6 +90,7 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
         .iter()
         .map(|f| read_csv_in(f, ImuGaps::Keep, args.units).map_err(|e| e.to_string()))
         .collect::<Result<Vec<_>, _>>()?;
+    check_units(args, &recs)?;
     let section = match args.sensor {
         Sensor::Mag => {
             let mut mag = Vec::new();
@@ -196,6 +198,26 @@ pub fn run(args: &CalibrateArgs) -> Result<(), String> {
     root.insert(args.sensor.key().into(), section);
     write_json_atomic(&args.out, &Value::Object(root))?;
     out!("written: {}", args.out.display());
+    Ok(())
+}
+
+/// The files' readings checked against `--units` as `rootfuse run` checks them (warnings
+/// printed; a gyroscope that fails against the motion an error): time in ms found thousands
+/// of "rest phases" without a word.
+fn check_units(args: &CalibrateArgs, recs: &[Recording]) -> Result<(), String> {
+    let mut checks = InputChecks::new(args.units, false);
+    for (d, (rec, file)) in recs.iter().zip(&args.files).enumerate() {
+        checks.observe_recording(d as u32, rec);
+        let what = file.display().to_string();
+        let nine_d = args.sensor == Sensor::Mag;
+        let verdict = checks.judge(&what, d as u32, RejectionTotals::default(), nine_d);
+        for w in &verdict.warnings {
+            eprintln!("warning: {w}");
+        }
+        if let Some(e) = verdict.error {
+            return Err(e);
+        }
+    }
     Ok(())
 }
 
@@ -319,9 +341,10 @@ fn write_json_atomic(path: &Path, value: &Value) -> Result<(), String> {
 pub struct CalibrationSet {
     /// The file, for messages.
     pub file: PathBuf,
-    /// Per section present (`mag`, `acc`, `gyro`), the unit its readings were written in (a
-    /// file without one was fitted to readings as written, taken as the filters' units).
-    pub units: Vec<(&'static str, String)>,
+    /// Per section present (`mag`, `acc`, `gyro`), the unit its readings were written in as
+    /// the file records it (`None`: a file written before units were recorded, fitted on the
+    /// readings as written).
+    pub units: Vec<(Sensor, Option<String>)>,
     /// Magnetometer.
     pub mag: Option<SensorCalibration<f64>>,
     /// Accelerometer.
@@ -389,8 +412,7 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationSet, String> {
         .filter_map(|s| {
             let section = root.get(s.key())?;
             let unit = section.get("units").and_then(Value::as_str);
-            let si = Units::default().get(s.unit_sensor()).to_string();
-            Some((s.key(), unit.map_or(si, str::to_string)))
+            Some((s, unit.map(str::to_string)))
         })
         .collect();
     Ok(CalibrationSet {
@@ -412,14 +434,30 @@ impl CalibrationSet {
     /// Refuses a run whose `--units` read a sensor in another unit than its calibration was
     /// fitted on: the calibration applies to converted readings, in the filters' units.
     pub fn check_units(&self, units: &Units) -> Result<(), String> {
-        for sensor in Sensor::ALL {
-            let Some((key, fitted)) = self.units.iter().find(|(k, _)| *k == sensor.key()) else {
-                continue;
+        for (sensor, recorded) in &self.units {
+            let (key, which) = (sensor.key(), sensor.unit_sensor());
+            let read = units.get(which);
+            // A file without units was fitted on the readings as written: the filters' units.
+            let fitted = match recorded {
+                Some(text) => Unit::parse(which, text).ok_or_else(|| {
+                    format!(
+                        "{}: {key}.units: {text:?} is no unit of the {} ({})",
+                        self.file.display(),
+                        which.name(),
+                        Unit::names(which)
+                    )
+                })?,
+                None => Units::default().get(which),
             };
-            let read = units.get(sensor.unit_sensor()).to_string();
-            if *fitted != read {
+            if fitted.factor() != read.factor() {
+                let said = match recorded {
+                    Some(_) => format!("was fitted on readings in {fitted}"),
+                    None => format!(
+                        "records no unit (written before units were recorded: taken as {fitted})"
+                    ),
+                };
                 return Err(format!(
-                    "{}: the {key} calibration was fitted on readings in {fitted}, and this run reads them in {read}: give both `rootfuse calibrate` and `rootfuse run` the same --units (calibrate again with --units {key}={read})",
+                    "{}: the {key} calibration {said}, and this run reads them in {read}: run with --units {key}={fitted}, or calibrate again with this run's --units",
                     self.file.display()
                 ));
             }

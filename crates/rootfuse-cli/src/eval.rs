@@ -116,15 +116,7 @@ fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<
     }
     let t = &reference.t;
     if let Some(i) = (0..n).find(|&i| (est_data.t[i] - t[i]).abs() > 1e-6 * t[i].abs().max(1.0)) {
-        // Estimates are written in s; a truth file in ms gives times 1000 times theirs.
-        let ratio = t[n - 1] / est_data.t[n - 1];
-        let hint = if (ratio.abs() - 1.0).abs() > 0.01 && ratio.is_finite() {
-            format!(
-                "; the truth's times are {ratio:.4} times the estimates': if its time is not in s, give its unit as to `rootfuse run` (--units time=ms)"
-            )
-        } else {
-            String::new()
-        };
+        let hint = time_unit_hint(t, &est_data.t, args.units.is_declared(Sensor::Time));
         return Err(format!(
             "{}: line {}: time {} does not match the truth's {} ({}){hint}",
             est.display(),
@@ -181,6 +173,31 @@ fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<
         alignment,
         consistency,
     })
+}
+
+/// What a time mismatch says about the truth's time unit: where the truth's time span is
+/// 10³, 10⁶ or 10⁹ times the estimates' (estimates are written in s), the unit it looks
+/// like; where it is 10⁻³… of theirs and `--units` gave a time unit, that the truth looks
+/// like seconds already. Empty otherwise (an offset or a stretch is no unit).
+fn time_unit_hint(truth: &[f64], est: &[f64], declared: bool) -> String {
+    let span = |t: &[f64]| t[t.len() - 1] - t[0];
+    let ratio = span(truth) / span(est);
+    let decades = ratio.log10();
+    let thousands = (decades / 3.0).round();
+    if !decades.is_finite() || thousands == 0.0 || (decades - 3.0 * thousands).abs() > 0.01 {
+        return String::new();
+    }
+    match thousands as i32 {
+        k @ 1..=3 => format!(
+            "; the truth's time spans {ratio:.4} times the estimates' (written in s): if it is in {}, say so as to `rootfuse run` (--units time={})",
+            ["ms", "us", "ns"][k as usize - 1],
+            ["ms", "us", "ns"][k as usize - 1]
+        ),
+        _ if declared => format!(
+            "; the truth's time spans {ratio:.4} times the estimates' (written in s): it looks like seconds already, without --units time=…"
+        ),
+        _ => String::new(),
+    }
 }
 
 /// Runs the command.

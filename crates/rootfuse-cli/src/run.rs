@@ -67,7 +67,8 @@ pub struct RunArgs {
     /// sensors left out are in the filters' units. Each input's data are checked against
     /// these units: a sensor whose readings look like another unit is named with the option
     /// that declares it: a warning, but an error for a gyroscope whose readings fail against
-    /// how the gravity direction turned, unless its unit is given here (a wrong one makes
+    /// how the gravity direction (or, in 9D, the magnetic field's) turned, unless its unit
+    /// is given here (a wrong one makes
     /// every estimate wrong; `gyro=rad/s` says the readings are rad/s after all).
     #[arg(long, value_name = "LIST", value_parser = parse_units, default_value = "")]
     units: Units,
@@ -267,8 +268,13 @@ fn output_format(args: &RunArgs, files: &[PathBuf]) -> Result<(Format, bool), St
 /// and its outcome.
 fn report(args: &RunArgs, totals: &Totals, seconds: f64) -> Outcome {
     let samples = totals.samples;
+    let devices = if totals.devices > 0 {
+        format!(", {} device(s)", totals.devices)
+    } else {
+        String::new()
+    };
     out!(
-        "{} file(s), {samples} samples, {:.3e} samples/s ({}), estimates in {}",
+        "{} file(s){devices}, {samples} samples, {:.3e} samples/s ({}), estimates in {}",
         totals.files,
         samples as f64 / seconds.max(1e-9),
         if args.offline {

@@ -51,6 +51,8 @@ impl Job<'_> {
 #[derive(Default)]
 pub struct Totals {
     pub files: usize,
+    /// Devices of a Parquet or Arrow fleet (0 for CSV recordings, one device each).
+    pub devices: usize,
     pub failed_files: usize,
     pub failed_devices: usize,
     pub samples: u64,
@@ -351,6 +353,8 @@ pub fn run_columnar(
     let mut checks = InputChecks::new(job.units, job.strict);
     // The magnetometer is judged only where every file has one.
     let mut fleet_mag = true;
+    // The file each device was first seen in, by device number, for its warnings.
+    let mut first_file: Vec<&Path> = Vec::new();
     for (file, out) in files.iter().zip(outs) {
         let mut file_totals = Totals::default();
         let fleet = Fleet {
@@ -370,6 +374,7 @@ pub fn run_columnar(
             staged,
         );
         totals.failed_devices += file_totals.failed_devices;
+        first_file.resize(devices.len(), file);
         match result {
             Ok(done) => {
                 staged.push((file.clone(), done));
@@ -384,7 +389,12 @@ pub fn run_columnar(
     if !any {
         return Err("no input could be read".into());
     }
-    judge_devices(job, &runner, &devices, &checks, fleet_mag, &mut totals)?;
+    totals.devices = devices.len();
+    let seen = Seen {
+        devices: &devices,
+        first_file: &first_file,
+    };
+    judge_devices(job, &runner, &seen, &checks, fleet_mag, &mut totals)?;
     if let Some(table) = job.device_specs {
         let unseen: Vec<&str> = devices.unseen().collect();
         table.report(devices.len() - labels.len(), &unseen);
@@ -412,16 +422,19 @@ const SHOWN_WARNINGS: usize = 5;
 fn judge_devices(
     job: &Job,
     runner: &FleetRunner,
-    devices: &Devices,
+    seen: &Seen<'_>,
     checks: &InputChecks,
     has_mag: bool,
     totals: &mut Totals,
 ) -> Result<(), String> {
     let mut warnings = 0usize;
-    for d in 0..devices.len() as u32 {
+    for d in 0..seen.devices.len() as u32 {
         let rejections = runner.rejections(d);
         totals.rejections += rejections;
-        let what = format!("device {}", devices.label(d));
+        let what = match seen.first_file.get(d as usize) {
+            Some(file) => format!("{}: device {}", file.display(), seen.devices.label(d)),
+            None => format!("device {}", seen.devices.label(d)),
+        };
         let verdict = checks.judge(&what, d, rejections, job.nine_d && has_mag);
         for w in &verdict.warnings {
             if warnings < SHOWN_WARNINGS {
@@ -444,6 +457,12 @@ fn judge_devices(
         );
     }
     Ok(())
+}
+
+/// The devices of a fleet run and the file each was first seen in.
+struct Seen<'a> {
+    devices: &'a Devices,
+    first_file: &'a [&'a Path],
 }
 
 /// The state of a fleet run that its files share.

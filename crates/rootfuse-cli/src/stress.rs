@@ -13,7 +13,7 @@ pub struct StressArgs {
     /// Ten times longer `benign` and `lambda-one` runs (1e7 steps).
     #[arg(long)]
     long: bool,
-    /// Multiplies every step count (e.g. 0.01 for a quick look).
+    /// Multiplies every step count (e.g. 0.01 for a quick look; at most 100).
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
     /// Print one JSON array instead of a table.
@@ -27,8 +27,12 @@ pub struct StressArgs {
 
 /// Runs the command.
 pub fn run(args: &StressArgs) -> Result<(), String> {
-    if !(args.scale > 0.0 && args.scale.is_finite()) {
-        return Err(format!("--scale must be positive, got {}", args.scale));
+    if !(args.scale > 0.0 && args.scale <= rootfuse_lsq::stress::MAX_SCALE) {
+        return Err(format!(
+            "--scale must be positive and at most {} (minutes per scenario), got {}",
+            rootfuse_lsq::stress::MAX_SCALE,
+            args.scale
+        ));
     }
     let options = StressOptions {
         long: args.long,

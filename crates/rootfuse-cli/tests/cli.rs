@@ -842,7 +842,22 @@ fn eval_align_scores_truth_in_other_frames() {
     let (code, _, stderr) = run_paths(&[&"eval", &mocap_path, &est, &"--align"]);
     assert_eq!(code, Some(2));
     assert!(
-        stderr.contains("1000.0000 times the estimates'") && stderr.contains("--units time=ms"),
+        stderr.contains("spans 1000.0000 times the estimates'")
+            && stderr.contains("--units time=ms"),
+        "{stderr}"
+    );
+    // Time in s declared ms: the hint says so; a truth offset by 10 s gets no unit hint.
+    let (code, _, stderr) = run_paths(&[&"eval", &own, &est, &"--units=time=ms"]);
+    assert_eq!(code, Some(2));
+    assert!(stderr.contains("looks like seconds already"), "{stderr}");
+    let mut shifted = rec.clone();
+    shifted.t.iter_mut().for_each(|t| *t += 10.0);
+    let shifted_path = dir.join("shifted.csv");
+    write_recording(&shifted_path, &shifted).unwrap();
+    let (code, _, stderr) = run_paths(&[&"eval", &shifted_path, &est]);
+    assert_eq!(code, Some(2));
+    assert!(
+        stderr.contains("does not match") && !stderr.contains("--units"),
         "{stderr}"
     );
     // The table shows both rotations.
@@ -1341,12 +1356,12 @@ fn calibrate_writes_what_run_applies() {
         "{h_nt} µT vs {} µT",
         h[0]
     );
-    let run_nt = |cal: &str| {
+    let run_nt = |cal: &str, units: &str| {
         run(&[
             "run",
             f_nt,
             "--units",
-            "mag=nT",
+            units,
             "--calibration",
             cal,
             "--out",
@@ -1354,16 +1369,34 @@ fn calibrate_writes_what_run_applies() {
             "--force",
         ])
     };
-    let o = run_nt(c_nt);
+    let o = run_nt(c_nt, "mag=nT");
     assert!(o.status.success(), "{:?}", text(&o));
-    let o = run_nt(c);
+    // The same unit as a factor is the same unit.
+    let o = run_nt(c_nt, "mag=0.001");
+    assert!(o.status.success(), "{:?}", text(&o));
+    let o = run_nt(c, "mag=nT");
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         err.contains("fitted on readings in uT, and this run reads them in nT")
-            && err.contains("--units mag=nT"),
+            && err.contains("run with --units mag=uT"),
         "{err}"
     );
+    // Time in ms is named, as `run` names it (it found thousands of "rest phases" quietly).
+    let mut in_ms = rec.clone();
+    in_ms.t.iter_mut().for_each(|t| *t *= 1000.0);
+    let file_ms = dir.join("rec_ms.csv");
+    write_recording(&file_ms, &in_ms).unwrap();
+    let cal_ms = dir.join("cal_ms.json");
+    let o = run(&[
+        "calibrate",
+        "gyro",
+        file_ms.to_str().unwrap(),
+        "--out",
+        cal_ms.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert!(err.contains("run with --units time=ms"), "{err}");
     // Motion that covers a cap of the sphere of directions: refused, unless allowed.
     let cap = rootfuse_eval::sim::scenario("handheld-translation", 1, 30.0, 100.0).unwrap();
     let file_cap = dir.join("cap.csv");

@@ -150,7 +150,10 @@ fn simulated_fleet_equals_the_library_per_device() {
             &out,
         ]);
         assert_eq!(code, Some(0), "{stderr}");
-        assert!(stdout.contains("1 file(s), 1500 samples"), "{stdout}");
+        assert!(
+            stdout.contains("1 file(s), 5 device(s), 1500 samples"),
+            "{stdout}"
+        );
         let rows = read_parquet_estimates(&out.join("fleet.parquet"));
         assert_eq!(rows.len(), 1500);
         let expected = library_estimates(5, 3.0, precision);
@@ -488,7 +491,10 @@ fn keep_going_completes_the_other_devices_and_files() {
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("row 27, column `t` (device 1)"), "{stderr}");
     assert!(stderr.contains("b.parquet"), "{stderr}");
-    assert!(stdout.contains("1 file(s), 33 samples"), "{stdout}");
+    assert!(
+        stdout.contains("1 file(s), 2 device(s), 33 samples"),
+        "{stdout}"
+    );
     assert_eq!(files_in(&out), vec![out.join("a.parquet")]);
     let rows = read_parquet_estimates(&out.join("a.parquet"));
     assert_eq!(rows.iter().filter(|r| r.0 == 0).count(), 20);

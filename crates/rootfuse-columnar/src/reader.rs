@@ -4,7 +4,9 @@ use crate::DEVICE;
 use crate::error::{ColumnarError, Part};
 use crate::kind::{self, Kind};
 use crate::mapped::{Footer, IpcFile, IpcStream, Mapped, StreamEnd};
-use crate::schema::{MAG, REQUIRED, check_schema, column_list, float_values, type_error};
+use crate::schema::{
+    MAG, REQUIRED, check_schema, column_list, float_values, time_like, type_error,
+};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, RecordBatchReader};
 use arrow::datatypes::{DataType, Int64Type};
 use parquet::arrow::ProjectionMask;
@@ -13,7 +15,7 @@ use parquet::arrow::arrow_reader::{
     ParquetRecordBatchReaderBuilder,
 };
 use rootfuse_attitude::Vec3;
-use rootfuse_attitude::units::Units;
+use rootfuse_attitude::units::{Sensor, Unit, Units};
 use rootfuse_batch::FleetBlock;
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -388,7 +390,9 @@ impl FleetReader {
     }
 
     /// Reads the fleet as written in `units`: every block is converted to the filters' units
-    /// (s, rad/s, m/s², µT) as it is read.
+    /// (s, rad/s, m/s², µT) as it is read. A timestamp or duration `t` says its own unit and
+    /// is read in seconds whatever `units` says of time (one `--units time=ms` may serve a
+    /// fleet of files whose `t` is int64 ms in some and a timestamp in others).
     pub fn with_units(mut self, units: Units) -> Self {
         self.units = units;
         self
@@ -417,10 +421,17 @@ impl FleetReader {
             }
             let first_row = self.rows_read;
             self.rows_read += batch.num_rows() as u64;
+            let mut units = self.units;
+            if batch
+                .column_by_name("t")
+                .is_some_and(|t| time_like(t.data_type()))
+                && let Some(seconds) = Unit::parse(Sensor::Time, "s")
+            {
+                units.set(seconds);
+            }
             let chunk = self.convert(&batch, part, first_row, devices).map(|mut c| {
                 let b = &mut c.block;
-                self.units
-                    .convert(&mut b.t, &mut b.gyr, &mut b.acc, b.mag.as_deref_mut());
+                units.convert(&mut b.t, &mut b.gyr, &mut b.acc, b.mag.as_deref_mut());
                 c
             });
             if let Source::IpcFile { map, .. } | Source::IpcStream { map, .. } = &self.source {

@@ -65,7 +65,7 @@ fn numeric(ty: &DataType) -> bool {
 }
 
 /// A type `t` may have beside a number: a timestamp or duration (read in seconds).
-fn time_like(ty: &DataType) -> bool {
+pub(crate) fn time_like(ty: &DataType) -> bool {
     matches!(ty, DataType::Timestamp(..) | DataType::Duration(_))
 }
 

@@ -412,6 +412,8 @@ fn integer_timestamp_and_dictionary_columns_read_as_numbers() {
     };
     // Debug text compares NaN with NaN, as `==` on the blocks would not.
     assert_eq!(read(&stored, "gyro=0.125"), read(&plain, ""));
+    // A timestamp says its own unit: a time unit for the fleet's other files leaves it be.
+    assert_eq!(read(&stored, "gyro=0.125,time=ms"), read(&plain, ""));
     // A string column is no number; a missing column lists the columns there are.
     let text: ArrayRef = Arc::new(StringArray::from(vec!["1"; rows]));
     let mut cols: Vec<(&str, ArrayRef)> = (0..floats.num_columns())

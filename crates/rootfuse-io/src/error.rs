@@ -101,6 +101,15 @@ pub enum ReadError {
         /// What to do instead.
         what_to_do: &'static str,
     },
+    /// The file's lines end in a carriage return alone (classic Mac OS), which the reader
+    /// would take as one long first line.
+    #[error(
+        "{place}: lines end in a carriage return alone (classic Mac OS line endings): convert them to LF or CRLF, e.g. `tr '\\r' '\\n' < in.csv > out.csv`"
+    )]
+    CarriageReturns {
+        /// Line 1 of the file.
+        place: Place,
+    },
     /// The file has no header line.
     #[error("{place}: empty file (no header)")]
     Empty {
@@ -225,6 +234,7 @@ impl ReadError {
             | ReadError::Csv { place, .. }
             | ReadError::Encoding { place, .. }
             | ReadError::NotText { place, .. }
+            | ReadError::CarriageReturns { place }
             | ReadError::Empty { place }
             | ReadError::MissingColumn { place, .. }
             | ReadError::DuplicateColumn { place }

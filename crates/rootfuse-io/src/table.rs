@@ -150,6 +150,15 @@ impl<R: Read> Table<R> {
                 encoding,
             });
         }
+        // A carriage return inside the "line" (not before its newline): lines end in CR alone,
+        // and the header just read holds the whole file.
+        let body = line.strip_suffix(b"\n").unwrap_or(&line);
+        let body = body.strip_suffix(b"\r").unwrap_or(body);
+        if body.contains(&b'\r') {
+            return Err(ReadError::CarriageReturns {
+                place: Place::line(file, 1),
+            });
+        }
         // Spreadsheet programs like to start UTF-8 files with a byte-order mark.
         let line = line.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&line);
         if line.iter().all(u8::is_ascii_whitespace) {

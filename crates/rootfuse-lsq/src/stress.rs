@@ -113,6 +113,11 @@ pub struct StressRow {
     pub trace: Vec<(u64, f64)>,
 }
 
+/// The largest [`StressOptions::scale`] the command line and Python accept: 100 times the
+/// documented lengths (1e8 steps of a long run) is minutes per scenario, and the run cannot
+/// be interrupted midway.
+pub const MAX_SCALE: f64 = 100.0;
+
 /// Run-length options.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StressOptions {

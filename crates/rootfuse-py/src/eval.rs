@@ -285,7 +285,8 @@ pub fn scenario_names() -> Vec<&'static str> {
 /// `units=` entry that fixes it (an error with `strict=True`); a gyroscope whose readings
 /// fail against how the gravity direction turned raises ValueError unless `units` gives its
 /// unit (`"gyro=rad/s"` if the readings are rad/s after all), as `rootfuse run` does.
-/// A malformed file raises ValueError naming file, line and column; a missing one OSError.
+/// A malformed file raises ValueError naming file, line and column; a missing one
+/// FileNotFoundError (an OSError).
 #[pyfunction]
 #[pyo3(signature = (path, *, units=None, strict=false))]
 pub fn read_csv<'py>(
@@ -306,10 +307,7 @@ pub fn read_csv<'py>(
             let findings = UnitCheck::of_recording(&rec, &units);
             Ok((rec, findings))
         })
-        .map_err(|e| match e {
-            rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
-            _ => PyValueError::new_err(e.to_string()),
-        })?;
+        .map_err(read_error)?;
     for f in &findings {
         let advice = if f.dead {
             format!("{}: {f}", path.display())
@@ -444,7 +442,8 @@ pub fn write_estimates(
 /// `bz`, `p_xx`..`p_zz`, `flags`, ...; an empty cell is NaN; a column named `t` or `quat`
 /// cannot occur besides those two).
 ///
-/// A malformed file raises ValueError naming file, line and column; a missing one OSError.
+/// A malformed file raises ValueError naming file, line and column; a missing one
+/// FileNotFoundError (an OSError).
 #[pyfunction]
 pub fn read_estimates<'py>(
     py: Python<'py>,
@@ -452,10 +451,7 @@ pub fn read_estimates<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let est = py
         .detach(|| rootfuse_io::read_estimates(&path))
-        .map_err(|e| match e {
-            rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
-            _ => PyValueError::new_err(e.to_string()),
-        })?;
+        .map_err(read_error)?;
     let n = est.t.len();
     let q: Vec<f64> = est.quat.iter().flat_map(|q| [q.w, q.x, q.y, q.z]).collect();
     let d = PyDict::new(py);
@@ -467,4 +463,19 @@ pub fn read_estimates<'py>(
     d.set_item("t", PyArray1::from_vec(py, est.t))?;
     d.set_item("quat", PyArray1::from_vec(py, q).reshape([n, 4])?)?;
     Ok(d)
+}
+
+/// A reader's error as Python raises it: a missing file `FileNotFoundError` (as
+/// `estimate_table` raises it), another I/O failure `OSError`, anything about the content
+/// `ValueError`.
+fn read_error(e: rootfuse_io::ReadError) -> PyErr {
+    match e {
+        rootfuse_io::ReadError::Io { ref source, .. }
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
+        }
+        rootfuse_io::ReadError::Io { .. } => PyIOError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
 }

@@ -686,6 +686,12 @@ pub fn stress<'py>(
     long: bool,
 ) -> PyResult<Bound<'py, PyList>> {
     crate::arrays::positive(scale, "scale")?;
+    if scale > rootfuse_lsq::stress::MAX_SCALE {
+        return Err(PyValueError::new_err(format!(
+            "scale: at most {} (minutes per scenario, and the run cannot be interrupted), got {scale}",
+            rootfuse_lsq::stress::MAX_SCALE
+        )));
+    }
     let options = rootfuse_lsq::stress::StressOptions { long, scale };
     let rows = match scenario {
         None => py.detach(|| rootfuse_lsq::stress::run_all(options)),

@@ -279,16 +279,27 @@ fn channel_specs(
                 )));
             }
             list.iter()
-                .map(|item| {
+                .enumerate()
+                .map(|(i, item)| {
                     let merged = PyDict::new(py);
                     if let Some(p) = params {
                         merged.update(p.as_mapping())?;
                     }
+                    let kind = item.get_type().name().map(|n| n.to_string());
                     let item = item.cast_into::<PyDict>().map_err(|_| {
-                        PyTypeError::new_err("channel_params: expected a list of dicts")
+                        PyTypeError::new_err(format!(
+                            "channel_params[{i}]: expected a dict of parameters, got {}",
+                            kind.unwrap_or_default()
+                        ))
                     })?;
                     merged.update(item.as_mapping())?;
-                    spec_from(name, dof, Some(&merged))
+                    // The channel named in the error, as the same type (ValueError, TypeError).
+                    spec_from(name, dof, Some(&merged)).map_err(|e| {
+                        PyErr::from_type(
+                            e.get_type(py),
+                            format!("channel_params[{i}]: {}", e.value(py)),
+                        )
+                    })
                 })
                 .collect::<PyResult<_>>()?
         }

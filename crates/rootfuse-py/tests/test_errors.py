@@ -135,6 +135,11 @@ def test_many_errors():
         rf.run_many("mahony", [GYR, GYR], [ACC, ACC[:-1]], dt=0.01)
     with pytest.raises(ValueError, match="channel_params: has 1 entries but there are 2 channels"):
         rf.run_many("mahony", [GYR, GYR], [ACC, ACC], dt=0.01, channel_params=[{}])
+    # The channel at fault is named.
+    with pytest.raises(ValueError, match=r"channel_params\[1\]: .*kp"):
+        rf.run_many("mahony", [GYR, GYR], [ACC, ACC], dt=0.01, channel_params=[{}, {"kp": -1.0}])
+    with pytest.raises(TypeError, match=r"channel_params\[0\]: expected a dict of parameters, got float"):
+        rf.run_many("mahony", [GYR, GYR], [ACC, ACC], dt=0.01, channel_params=[1.0, {}])
     with pytest.raises(ValueError, match=r"dt: expected shape \(C, N\)"):
         rf.run_many("mahony", GYR[None], ACC[None], dt=np.zeros((1, 2, 3)))
 
@@ -166,6 +171,8 @@ def test_lsq_errors():
         rf.lstsq(np.ones((3, 2)), np.ones(3), method="qr")
     with pytest.raises(ValueError, match="scenario: unknown"):
         rf.stress("nope", scale=0.01)
+    with pytest.raises(ValueError, match="scale: at most 100"):
+        rf.stress("benign", scale=1e6)
 
 
 def test_eval_errors(tmp_path):
@@ -176,8 +183,11 @@ def test_eval_errors(tmp_path):
         rf.rmse(q, q, dof=7)
     with pytest.raises(ValueError, match="scenario: "):
         rf.simulate("nope")
-    with pytest.raises(OSError, match="cannot read"):
+    # FileNotFoundError, as estimate_table raises it (an OSError).
+    with pytest.raises(FileNotFoundError, match="cannot read"):
         rf.read_csv(tmp_path / "missing.csv")
+    with pytest.raises(FileNotFoundError, match="cannot read"):
+        rf.read_estimates(tmp_path / "missing.csv")
     bad = tmp_path / "bad.csv"
     bad.write_text("t,gx,gy,gz,ax,ay,az\n0,0,0,0,0,0,9.8\n0.01,0,x,0,0,0,9.8\n")
     with pytest.raises(ValueError, match="bad.csv: line 3"):

@@ -44,3 +44,19 @@ def test_readme_python_examples_type_check(readme, tmp_path):
     example.write_text("\n".join(blocks))
     r = _mypy(["mypy", "--no-incremental", "--show-error-codes", str(example)], tmp_path)
     assert r.returncode == 0, f"mypy on {readme.name}'s examples:\n{r.stdout}{r.stderr}"
+
+
+def test_run_many_types_follow_series_and_dtype(tmp_path):
+    # `series` as a runtime bool picks the last overload; float32 series are typed as such.
+    example = tmp_path / "run_many_types.py"
+    example.write_text(
+        "import numpy as np\n"
+        "import rootfuse as rf\n"
+        "g = np.zeros((2, 10, 3)); a = np.zeros((2, 10, 3)); a[..., 2] = 9.81\n"
+        "def run(keep_series: bool) -> object:\n"
+        "    return rf.run_many('mahony', g, a, dt=0.01, series=keep_series)\n"
+        "r = rf.run_many('mahony', g, a, dt=0.01, dtype='float32')\n"
+        "q32: 'np.typing.NDArray[np.float32] | np.typing.NDArray[np.float64]' = r['quat']\n"
+    )
+    r = _mypy(["mypy", "--no-incremental", "--show-error-codes", str(example)], tmp_path)
+    assert r.returncode == 0, f"mypy:\n{r.stdout}{r.stderr}"

@@ -47,6 +47,8 @@ __version__: str
 
 _FloatArray = npt.NDArray[np.floating[Any]]
 _F64 = npt.NDArray[np.float64]
+# A series in the dtype asked for (float64 by default, float32 with ``dtype="float32"``).
+_Series = Union[npt.NDArray[np.float64], npt.NDArray[np.float32]]
 _U8 = npt.NDArray[np.uint8]
 _Bools = npt.NDArray[np.bool_]
 _Path = Union[str, "PathLike[str]"]
@@ -77,18 +79,18 @@ class _Series(TypedDict):
 class _ManySeries(TypedDict):
     """``run_many`` of (C, N, 3) arrays with ``series=True``: (C, N, ...) arrays."""
 
-    quat: _F64
-    bias: NotRequired[_F64]
-    covariance: NotRequired[_F64]
+    quat: _Series
+    bias: NotRequired[_Series]
+    covariance: NotRequired[_Series]
     flags: NotRequired[_U8]
     rejections: List[_Rejections]
 
 class _ChannelSeries(TypedDict):
     """One channel of ``run_many`` of lists with ``series=True``: (N_i, ...) arrays."""
 
-    quat: _F64
-    bias: NotRequired[_F64]
-    covariance: NotRequired[_F64]
+    quat: _Series
+    bias: NotRequired[_Series]
+    covariance: NotRequired[_Series]
     flags: NotRequired[_U8]
     rejections: _Rejections
 
@@ -280,6 +282,28 @@ def run_many(
 ) -> _ManyFinal:
     """``series=False``: the final state of each channel, (C, ...) arrays."""
 
+@overload
+def run_many(
+    name: str,
+    gyr: Union[_FloatArray, Sequence[_FloatArray]],
+    acc: Union[_FloatArray, Sequence[_FloatArray]],
+    mag: Union[_FloatArray, Sequence[_FloatArray], None] = None,
+    dt: Union[float, _FloatArray, Sequence[_FloatArray], None] = None,
+    *,
+    t: Union[_FloatArray, Sequence[_FloatArray], None] = None,
+    dof: Optional[int] = None,
+    precision: str = "f32",
+    channel_params: Optional[List[Dict[str, float]]] = None,
+    series: bool,
+    bias: bool = True,
+    covariance: bool = False,
+    flags: bool = True,
+    dtype: Union[str, type, None] = None,
+    out: Optional[Dict[str, npt.NDArray[Any]]] = None,
+    **params: float,
+) -> Union[_ManySeries, List[_ChannelSeries], _ManyFinal]:
+    """``series`` known only when the program runs: any of the results above."""
+
 def estimate_arrow(
     source: Any,
     filter: str,
@@ -376,7 +400,7 @@ def lstsq(
 
 def stress(scenario: Optional[str] = None, *, scale: float = 1.0, long: bool = False) -> List[Dict[str, Any]]:
     """The RLS stress scenarios against a double-double reference, one row per form,
-    precision and parameter."""
+    precision and parameter. ``scale`` multiplies every step count (at most 100)."""
 
 def stress_scenarios() -> List[str]: ...
 def rmse(est: _FloatArray, truth: _Truth, *, use: _Use = None, dof: int = 9) -> _Rmse:
