@@ -4,9 +4,10 @@ use crate::arrays::{DofArg, Steps};
 use crate::filter::{imu_arrays, recording, spec_from};
 use crate::inputs::Inputs;
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rootfuse_attitude::units::{Sensor, UnitCheck, Units};
 
 /// Offline forward-backward smoothing of one recording (f64), for filters with an attitude
 /// covariance (`sqrt-eskf`/`flagship`, `ekf`).
@@ -18,6 +19,11 @@ use pyo3::types::PyDict;
 /// (`smoothing_gyro_scale=1`, the default) also `"gyro_scale"` `(3,)`, the scale error per
 /// axis (a fraction) an online run at half the rate estimated and both passes' readings were
 /// divided by (`smoothing_gyro_scale=0` skips that run).
+///
+/// The arrays are checked against the filters' units as `read_csv` checks a file: a sensor
+/// whose readings look like another unit (a gyroscope in °/s, time in ms) raises a
+/// `UserWarning` naming it; convert it before the call (`read_csv(path, units=...)` converts
+/// files).
 #[pyfunction]
 #[pyo3(signature = (name, gyr, acc, mag=None, *, t=None, dt=None, dof=None, **params))]
 #[allow(clippy::too_many_arguments)]
@@ -43,6 +49,22 @@ pub fn smooth<'py>(
     let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
     let rec = recording(&input, steps.times(n), None, None);
     let nine_d = spec.uses_magnetometer();
+    let findings = py.detach(|| UnitCheck::of_recording(&rec, &Units::default()));
+    for f in findings
+        .iter()
+        .filter(|f| nine_d || f.sensor != Sensor::Magnetometer)
+    {
+        let advice = if f.dead {
+            format!("smooth: {f}")
+        } else {
+            format!(
+                "smooth: {f}: the arrays must be in s, rad/s, m/s2 and uT; convert this sensor's ({}) first",
+                f.declaration()
+            )
+        };
+        let message = std::ffi::CString::new(advice).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+    }
     let result = py.detach(|| rootfuse_attitude::smooth::smooth_spec(&rec, &spec, nine_d));
     let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
     let q: Vec<f64> = smoothed

@@ -91,6 +91,18 @@ def test_smooth_equals_rust_offline(cli, tmp_path):
     assert out["forward_only"] >= 0
 
 
+def test_smooth_names_arrays_in_other_units():
+    # A gyroscope in deg/s given as arrays: smooth says so (it ran quietly, far off).
+    rec = rf.simulate("slow-rotation", seed=3, duration_s=60.0)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rf.smooth("flagship", rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
+    with pytest.warns(UserWarning, match=r"smooth: gyroscope: .*look like deg/s.*convert this sensor's \(gyro=deg/s\)"):
+        rf.smooth("flagship", np.rad2deg(rec["gyr"]), rec["acc"], rec["mag"], t=rec["t"])
+
+
 def test_parameters_reach_the_filter(cli, tmp_path):
     path = sim_with_bad_samples(tmp_path)
     ref = run_cli(cli, path, tmp_path / "out", "mahony", "f64", 6, ["--param", "kp=0.8"])

@@ -213,7 +213,8 @@ def smooth(
 ) -> _Smoothed:
     """Offline forward-backward smoothing (f64) for filters with an attitude covariance:
     ``{"quat": (N, 4), "forward_only": int}``, and for the flagship ``"gyro_scale"`` (3,),
-    unless ``smoothing_gyro_scale=0``."""
+    unless ``smoothing_gyro_scale=0``. Arrays in other units than s, rad/s, m/s², µT (a
+    gyroscope in deg/s) raise a ``UserWarning`` naming the sensor."""
 
 @overload
 def run_many(
