@@ -77,8 +77,8 @@ fn utf16_and_utf32_are_refused_by_name() {
 }
 
 /// Lines ending in a carriage return alone (classic Mac OS) are named, with the conversion:
-/// the reader took the whole file for its header ("expected 15 fields, found 13"). CRLF and
-/// a file whose last line ends in CR still read.
+/// the reader took the whole file for its header ("expected 15 fields, found 13"). CRLF,
+/// CR CR LF and a file whose last line ends in CR still read.
 #[test]
 fn carriage_return_line_endings_are_named() {
     let dir = temp_dir("cr");
@@ -91,6 +91,8 @@ fn carriage_return_line_endings_are_named() {
     for (name, text) in [
         ("crlf", COMMA.replace('\n', "\r\n")),
         ("last", format!("{}\r", COMMA.trim_end())),
+        // As Python's csv.writer leaves it on Windows without newline="".
+        ("crcrlf", COMMA.replace('\n', "\r\r\n")),
     ] {
         let p = dir.join(format!("{name}.csv"));
         std::fs::write(&p, text).unwrap();

@@ -248,9 +248,10 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 /// the whole recording finds the gaps; with any, each stretch then runs again, so a
 /// recording with gaps costs twice one without. [`Smoothed::rejections`] adds up the
 /// stretches' own and counts each gap as a skipped step. A stretch of one sample (between
-/// two gaps, or before or after one) is smoothed as that sample held for [`HELD_STEPS`] of
-/// the recording's median step: the filter settles on its accelerometer and magnetometer (a
-/// lone sample has no step of its own, and was left at the filter's initial state).
+/// two gaps, or before or after one) is smoothed as that sample held for a step of
+/// [`HELD_STEP`]: the filter starts from its accelerometer and magnetometer (a lone sample
+/// has no step of its own, and was left at the filter's initial state). A time that is not
+/// a number splits stretches too: the filter skips the steps on both sides of it.
 ///
 /// # Errors
 /// [`SmoothError::NoCovariance`] if the filter has no attitude covariance.
@@ -269,14 +270,23 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     rejections.dt[0] = gaps.len() as u64;
     let mut from = 0;
     for end in gaps.into_iter().chain([rec.len()]) {
-        let stretch = match end - from {
-            1 => held_still(rec, from, median_step(rec)),
-            _ => rec.slice(from..end),
+        let lone = end - from == 1;
+        let stretch = if lone {
+            held_still(rec, from)
+        } else {
+            rec.slice(from..end)
         };
         let (part, _) = smooth_stretch(&stretch, &mut build, nine_d)?;
-        quat.extend(part.quat.into_iter().take(end - from));
-        forward_only += part.forward_only.min(end - from);
-        add_counts(&mut rejections, &part.rejections);
+        let estimated = part.quat.len().min(end - from);
+        quat.extend(part.quat.into_iter().take(estimated));
+        forward_only += part.forward_only.min(estimated);
+        // Never fewer estimates than samples: a stretch the filter could not smooth (none
+        // is known) holds the estimate before it, counted as not fused.
+        let held = quat.last().copied().unwrap_or(Quat::identity());
+        quat.resize(end, held);
+        forward_only += end - from - estimated;
+        // A held sample's copy repeats its readings: its counts are the sample's again.
+        add_counts(&mut rejections, &part.rejections, if lone { 2 } else { 1 });
         from = end;
     }
     Ok(Smoothed {
@@ -287,51 +297,36 @@ pub fn forward_backward<F: OrientationFilter<f64x2>>(
     })
 }
 
-/// Copies of a lone sample the smoother runs over: one step, which the filter starts from
-/// (a lone sample tilted 60° came out within 0.7° in tilt, 2.6° in all; 50 copies did no
-/// better).
-const HELD_STEPS: usize = 2;
+/// The step (s) a lone sample is held over: the smallest `max_dt` any filter takes, so that
+/// no filter skips it (a lone sample tilted 60° came out within 0.7° in tilt, 2.6° in all;
+/// its estimate is the filter's start from its readings).
+const HELD_STEP: f64 = 1e-6;
 
-/// Sample `i` of `rec` repeated [`HELD_STEPS`] times, `step` s apart: a stretch of one sample
-/// made one the filter can settle on. The sample itself comes first.
-fn held_still(rec: &Recording, i: usize, step: f64) -> Recording {
+/// Sample `i` of `rec` and a copy of it [`HELD_STEP`] later (its time, which may not be a
+/// number, is not used): a stretch of one sample made one the filter can start from.
+fn held_still(rec: &Recording, i: usize) -> Recording {
     let mut held = rec.slice(i..i + 1);
-    for k in 1..HELD_STEPS {
-        held.t.push(held.t[0] + step * k as f64);
-        held.gyr.push(held.gyr[0]);
-        held.acc.push(held.acc[0]);
-        if let Some(m) = &mut held.mag {
-            m.push(m[0]);
-        }
+    held.t = std::vec![0.0, HELD_STEP];
+    held.gyr.push(held.gyr[0]);
+    held.acc.push(held.acc[0]);
+    if let Some(m) = &mut held.mag {
+        m.push(m[0]);
     }
     held.truth = None;
     held.use_mask = None;
     held
 }
 
-/// The median of `rec`'s positive, finite time steps (0.01 s if it has none).
-fn median_step(rec: &Recording) -> f64 {
-    let mut steps: Vec<f64> = rec
-        .t
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| d.is_finite() && *d > 0.0)
-        .collect();
-    if steps.is_empty() {
-        return 0.01;
-    }
-    let mid = steps.len() / 2;
-    *steps.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
-/// Adds `part`'s counts (lane 0) to `total`'s.
-fn add_counts(total: &mut Rejections<f64>, part: &Rejections<f64>) {
-    total.dt[0] += part.dt[0];
-    total.gyr[0] += part.gyr[0];
-    total.acc[0] += part.acc[0];
-    total.mag[0] += part.mag[0];
-    total.gated[0] += part.gated[0];
-    total.mag_disturbed[0] += part.mag_disturbed[0];
+/// Adds `part`'s counts (lane 0) to `total`'s, each divided by `copies` (rounded up): the
+/// counts of a sample run `copies` times.
+fn add_counts(total: &mut Rejections<f64>, part: &Rejections<f64>, copies: u64) {
+    let one = |c: u64| c.div_ceil(copies);
+    total.dt[0] += one(part.dt[0]);
+    total.gyr[0] += one(part.gyr[0]);
+    total.acc[0] += one(part.acc[0]);
+    total.mag[0] += one(part.mag[0]);
+    total.gated[0] += one(part.gated[0]);
+    total.mag_disturbed[0] += one(part.mag_disturbed[0]);
 }
 
 /// [`forward_backward`] over `rec` as one stretch, or, where the forward lane skipped a

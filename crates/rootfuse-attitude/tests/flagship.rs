@@ -493,18 +493,14 @@ fn the_smoother_estimates_lone_samples_between_gaps() {
     for t in &mut nan_time.t[501..] {
         *t += 30.0;
     }
-    for (name, rec, gaps) in [("lone", &rec, 4), ("nan", &nan_time, 5)] {
+    // Skipped steps: one per gap, and the sample whose time is not a number.
+    for (name, rec, skipped) in [("lone", &rec, 4), ("nan", &nan_time, 6u64)] {
         let out = smooth_spec(rec, &spec, true).unwrap();
         // A lone sample's inclination is its accelerometer's; its heading comes from one
         // magnetometer reading through the filter's start-up (measured: 0.1–0.7° in tilt,
         // 2.3–2.6° in all).
-        let up = Vec3::new(0.0, 0.0, 1.0);
-        let tilt_off = |q: Quat<f64>| {
-            let (a, b) = (q.rotate_inverse(up), truth.rotate_inverse(up));
-            a.cross(b).norm().atan2(a.dot(b)).to_degrees()
-        };
         for k in [0, 1000, n - 1] {
-            let off = tilt_off(out.quat[k]);
+            let off = tilt_of(out.quat[k], truth);
             let all = out.quat[k].angle_to(truth).to_degrees();
             assert!(
                 off < 1.5 && all < 4.0,
@@ -515,12 +511,29 @@ fn the_smoother_estimates_lone_samples_between_gaps() {
             let off = out.quat[k].angle_to(truth).to_degrees();
             assert!(off < 3.0, "{name}: sample {k} is {off:.1}° from the truth");
         }
-        assert!(
-            out.rejections.dt[0] >= gaps,
-            "{name}: {:?}",
-            out.rejections.dt
-        );
+        assert_eq!(out.rejections.dt[0], skipped, "{name}: each counted once");
     }
+    // Every step beyond max_dt: every sample is a lone one, each estimated and counted once
+    // (the copy held over a step of its own was skipped, and the estimate dropped).
+    let mut every = spec.clone();
+    every.set("max_dt=0.005").unwrap();
+    let short = rec.slice(2..300);
+    let out = smooth_spec(&short, &every, true).unwrap();
+    assert_eq!(out.quat.len(), short.len());
+    assert_eq!(out.rejections.dt[0], short.len() as u64 - 1);
+    let worst = out
+        .quat
+        .iter()
+        .map(|q| tilt_of(*q, truth))
+        .fold(0.0, f64::max);
+    assert!(worst < 1.5, "a lone sample tilted {worst:.1}° off");
+}
+
+/// The angle (degrees) between the vertical as `q` and as `truth` see it.
+fn tilt_of(q: Quat<f64>, truth: Quat<f64>) -> f64 {
+    let up = Vec3::new(0.0, 0.0, 1.0);
+    let (a, b) = (q.rotate_inverse(up), truth.rotate_inverse(up));
+    a.cross(b).norm().atan2(a.dot(b)).to_degrees()
 }
 
 /// Samples missing (30 s of a 60 s rotation dropped, the time stamps kept): each stretch

@@ -64,6 +64,11 @@ impl InputChecks {
         self.checks[d].add_si(t, gyr, acc, mag);
     }
 
+    /// Rows of device `d` observed so far.
+    pub fn rows(&self, d: u32) -> u64 {
+        self.samples.get(d as usize).copied().unwrap_or(0)
+    }
+
     /// The unit findings of device `d`.
     pub fn findings(&self, d: u32) -> Vec<UnitFinding> {
         self.checks

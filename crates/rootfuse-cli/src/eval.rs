@@ -2,7 +2,7 @@
 use crate::checks::parse_units;
 use clap::Args;
 use rootfuse_attitude::Quat;
-use rootfuse_attitude::units::{Sensor, Units};
+use rootfuse_attitude::units::{Sensor, Unit, Units};
 use rootfuse_eval::alignment::{FrameAlignment, align_frames};
 use rootfuse_eval::consistency::{Consistency, UpperTriangle, consistency};
 use rootfuse_eval::metrics::{Alignment, Rmse, rmse};
@@ -116,7 +116,7 @@ fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<
     }
     let t = &reference.t;
     if let Some(i) = (0..n).find(|&i| (est_data.t[i] - t[i]).abs() > 1e-6 * t[i].abs().max(1.0)) {
-        let hint = time_unit_hint(t, &est_data.t, args.units.is_declared(Sensor::Time));
+        let hint = time_unit_hint(t, &est_data.t, args.units.get(Sensor::Time));
         return Err(format!(
             "{}: line {}: time {} does not match the truth's {} ({}){hint}",
             est.display(),
@@ -175,29 +175,32 @@ fn score(truth: &Path, est: &Path, align: Alignment, args: &EvalArgs) -> Result<
     })
 }
 
-/// What a time mismatch says about the truth's time unit: where the truth's time span is
-/// 10³, 10⁶ or 10⁹ times the estimates' (estimates are written in s), the unit it looks
-/// like; where it is 10⁻³… of theirs and `--units` gave a time unit, that the truth looks
-/// like seconds already. Empty otherwise (an offset or a stretch is no unit).
-fn time_unit_hint(truth: &[f64], est: &[f64], declared: bool) -> String {
+/// What a time mismatch says about the truth's time unit. `truth` is in seconds as
+/// `declared` converted it; estimates are written in s. Where the spans' ratio makes the
+/// file's own unit one of s, ms, µs or ns (within 1 %) and not the declared one, that unit
+/// is named. Empty otherwise (an offset or a stretch of the time line is no unit).
+fn time_unit_hint(truth: &[f64], est: &[f64], declared: Unit) -> String {
     let span = |t: &[f64]| t[t.len() - 1] - t[0];
     let ratio = span(truth) / span(est);
-    let decades = ratio.log10();
-    let thousands = (decades / 3.0).round();
-    if !decades.is_finite() || thousands == 0.0 || (decades - 3.0 * thousands).abs() > 0.01 {
+    // The factor from the file's numbers to seconds that would have matched.
+    let actual = declared.factor() / ratio;
+    let Some((name, factor)) = [("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)]
+        .into_iter()
+        .find(|(_, f)| (actual / f - 1.0).abs() < 0.01)
+    else {
+        return String::new();
+    };
+    if factor == declared.factor() {
         return String::new();
     }
-    match thousands as i32 {
-        k @ 1..=3 => format!(
-            "; the truth's time spans {ratio:.4} times the estimates' (written in s): if it is in {}, say so as to `rootfuse run` (--units time={})",
-            ["ms", "us", "ns"][k as usize - 1],
-            ["ms", "us", "ns"][k as usize - 1]
-        ),
-        _ if declared => format!(
-            "; the truth's time spans {ratio:.4} times the estimates' (written in s): it looks like seconds already, without --units time=…"
-        ),
-        _ => String::new(),
-    }
+    let fix = if factor == 1.0 {
+        "leave time out of --units".to_string()
+    } else {
+        format!("--units time={name}, as to `rootfuse run`")
+    };
+    format!(
+        "; the truth's time spans {ratio:.4} times the estimates' (written in s): its time looks like {name} ({fix})"
+    )
 }
 
 /// Runs the command.

@@ -353,8 +353,9 @@ pub fn run_columnar(
     let mut checks = InputChecks::new(job.units, job.strict);
     // The magnetometer is judged only where every file has one.
     let mut fleet_mag = true;
-    // The file each device was first seen in, by device number, for its warnings.
-    let mut first_file: Vec<&Path> = Vec::new();
+    // The file each device's first rows were in, by device number, for its warnings (the
+    // devices of --device-params are numbered before any file is read).
+    let mut first_file: Vec<Option<&Path>> = Vec::new();
     for (file, out) in files.iter().zip(outs) {
         let mut file_totals = Totals::default();
         let fleet = Fleet {
@@ -374,7 +375,12 @@ pub fn run_columnar(
             staged,
         );
         totals.failed_devices += file_totals.failed_devices;
-        first_file.resize(devices.len(), file);
+        first_file.resize(devices.len(), None);
+        for (d, seen) in first_file.iter_mut().enumerate() {
+            if seen.is_none() && checks.rows(d as u32) > 0 {
+                *seen = Some(file);
+            }
+        }
         match result {
             Ok(done) => {
                 staged.push((file.clone(), done));
@@ -389,7 +395,9 @@ pub fn run_columnar(
     if !any {
         return Err("no input could be read".into());
     }
-    totals.devices = devices.len();
+    totals.devices = (0..devices.len() as u32)
+        .filter(|&d| checks.rows(d) > 0)
+        .count();
     let seen = Seen {
         devices: &devices,
         first_file: &first_file,
@@ -432,8 +440,8 @@ fn judge_devices(
         let rejections = runner.rejections(d);
         totals.rejections += rejections;
         let what = match seen.first_file.get(d as usize) {
-            Some(file) => format!("{}: device {}", file.display(), seen.devices.label(d)),
-            None => format!("device {}", seen.devices.label(d)),
+            Some(Some(file)) => format!("{}: device {}", file.display(), seen.devices.label(d)),
+            _ => format!("device {}", seen.devices.label(d)),
         };
         let verdict = checks.judge(&what, d, rejections, job.nine_d && has_mag);
         for w in &verdict.warnings {
@@ -462,7 +470,7 @@ fn judge_devices(
 /// The devices of a fleet run and the file each was first seen in.
 struct Seen<'a> {
     devices: &'a Devices,
-    first_file: &'a [&'a Path],
+    first_file: &'a [Option<&'a Path>],
 }
 
 /// The state of a fleet run that its files share.

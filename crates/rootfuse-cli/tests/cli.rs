@@ -843,13 +843,16 @@ fn eval_align_scores_truth_in_other_frames() {
     assert_eq!(code, Some(2));
     assert!(
         stderr.contains("spans 1000.0000 times the estimates'")
-            && stderr.contains("--units time=ms"),
+            && stderr.contains("looks like ms (--units time=ms"),
         "{stderr}"
     );
     // Time in s declared ms: the hint says so; a truth offset by 10 s gets no unit hint.
     let (code, _, stderr) = run_paths(&[&"eval", &own, &est, &"--units=time=ms"]);
     assert_eq!(code, Some(2));
-    assert!(stderr.contains("looks like seconds already"), "{stderr}");
+    assert!(
+        stderr.contains("looks like s (leave time out of --units)"),
+        "{stderr}"
+    );
     let mut shifted = rec.clone();
     shifted.t.iter_mut().for_each(|t| *t += 10.0);
     let shifted_path = dir.join("shifted.csv");

@@ -150,11 +150,13 @@ impl<R: Read> Table<R> {
                 encoding,
             });
         }
-        // A carriage return inside the "line" (not before its newline): lines end in CR alone,
-        // and the header just read holds the whole file.
-        let body = line.strip_suffix(b"\n").unwrap_or(&line);
-        let body = body.strip_suffix(b"\r").unwrap_or(body);
-        if body.contains(&b'\r') {
+        // No newline in the header read, yet a carriage return before its end: lines end in CR
+        // alone, and the "header" holds the whole file (or its first MiB). A CR before a
+        // newline (`\r\r\n` as some writers leave it) or in a quoted field of a header that
+        // ends in a newline is no such file.
+        let trailing_crs = line.iter().rev().take_while(|&&b| b == b'\r').count();
+        let body = &line[..line.len() - trailing_crs];
+        if !line.ends_with(b"\n") && body.contains(&b'\r') {
             return Err(ReadError::CarriageReturns {
                 place: Place::line(file, 1),
             });

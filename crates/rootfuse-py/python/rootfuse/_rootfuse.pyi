@@ -48,7 +48,7 @@ __version__: str
 _FloatArray = npt.NDArray[np.floating[Any]]
 _F64 = npt.NDArray[np.float64]
 # A series in the dtype asked for (float64 by default, float32 with ``dtype="float32"``).
-_Series = Union[npt.NDArray[np.float64], npt.NDArray[np.float32]]
+_SeriesArray = Union[npt.NDArray[np.float64], npt.NDArray[np.float32]]
 _U8 = npt.NDArray[np.uint8]
 _Bools = npt.NDArray[np.bool_]
 _Path = Union[str, "PathLike[str]"]
@@ -79,18 +79,18 @@ class _Series(TypedDict):
 class _ManySeries(TypedDict):
     """``run_many`` of (C, N, 3) arrays with ``series=True``: (C, N, ...) arrays."""
 
-    quat: _Series
-    bias: NotRequired[_Series]
-    covariance: NotRequired[_Series]
+    quat: _SeriesArray
+    bias: NotRequired[_SeriesArray]
+    covariance: NotRequired[_SeriesArray]
     flags: NotRequired[_U8]
     rejections: List[_Rejections]
 
 class _ChannelSeries(TypedDict):
     """One channel of ``run_many`` of lists with ``series=True``: (N_i, ...) arrays."""
 
-    quat: _Series
-    bias: NotRequired[_Series]
-    covariance: NotRequired[_Series]
+    quat: _SeriesArray
+    bias: NotRequired[_SeriesArray]
+    covariance: NotRequired[_SeriesArray]
     flags: NotRequired[_U8]
     rejections: _Rejections
 
