@@ -248,8 +248,8 @@ type Pass = Vec<(Quat<f64>, Option<Mat<f64, 3, 3>>)>;
 /// the whole recording finds the gaps; with any, each stretch then runs again, so a
 /// recording with gaps costs twice one without. [`Smoothed::rejections`] adds up the
 /// stretches' own and counts each gap as a skipped step. A stretch of one sample (between
-/// two gaps, or before or after one) is smoothed as that sample held for a step of
-/// [`HELD_STEP`]: the filter starts from its accelerometer and magnetometer (a lone sample
+/// two gaps, or before or after one) is smoothed as that sample held for a step of 1 µs
+/// (the smallest `max_dt` any filter takes): the filter starts from its accelerometer and magnetometer (a lone sample
 /// has no step of its own, and was left at the filter's initial state). A time that is not
 /// a number splits stretches too: the filter skips the steps on both sides of it.
 ///

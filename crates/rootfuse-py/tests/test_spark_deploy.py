@@ -48,6 +48,13 @@ def _missing():
     return None
 
 
+def _spark_work():
+    """Where a local-cluster worker leaves its application folders: SPARK_HOME/work."""
+    import pyspark
+
+    return pathlib.Path(pyspark.__file__).parent / "work"
+
+
 def _tool(name):
     return str(BIN / name) if (BIN / name).exists() else shutil.which(name)
 
@@ -115,15 +122,21 @@ def test_spark_submit_with_packed_venv(packed_env, cli, tmp_path, layout):
         PYSPARK_DRIVER_PYTHON=sys.executable,
         PYSPARK_PYTHON="./environment/bin/python",
         SPARK_LOCAL_IP="127.0.0.1",
-        # The executor's work folders (with the unpacked environment) under the test's.
-        SPARK_WORKER_DIR=str(tmp_path / "work"),
     )
-    proc = subprocess.run(
-        [_tool("spark-submit"), "--master", "local-cluster[1,2,1024]", "--archives", f"{packed_env}#environment",
-         "--conf", "spark.ui.enabled=false", "--conf", "spark.driver.host=127.0.0.1",
-         str(job), str(source), str(out), layout],
-        env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600,
-    )
+    # A local-cluster worker puts its application folders (each with the unpacked
+    # environment, ~0.3 GB) in SPARK_HOME/work whatever SPARK_WORKER_DIR says: inside the
+    # venv's pyspark. The ones this run adds are removed after it.
+    before = set(_spark_work().glob("app-*"))
+    try:
+        proc = subprocess.run(
+            [_tool("spark-submit"), "--master", "local-cluster[1,2,1024]", "--archives",
+             f"{packed_env}#environment", "--conf", "spark.ui.enabled=false", "--conf",
+             "spark.driver.host=127.0.0.1", str(job), str(source), str(out), layout],
+            env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600,
+        )
+    finally:
+        for app in set(_spark_work().glob("app-*")) - before:
+            shutil.rmtree(app, ignore_errors=True)
     assert proc.returncode == 0, proc.stderr[-4000:]
     got = pq.read_table(out)
     want = pq.read_table(cli_out / "fleet.parquet")
