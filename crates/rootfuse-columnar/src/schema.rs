@@ -7,6 +7,8 @@ use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type, Schema};
 use std::borrow::Cow;
 use std::path::Path;
 
+pub(crate) use rootfuse_io::column_list;
+
 /// The columns every fleet file has.
 pub(crate) const REQUIRED: [&str; 7] = ["t", "gx", "gy", "gz", "ax", "ay", "az"];
 /// The magnetometer's columns: all three or none.
@@ -67,22 +69,6 @@ fn numeric(ty: &DataType) -> bool {
 /// A type `t` may have beside a number: a timestamp or duration (read in seconds).
 pub(crate) fn time_like(ty: &DataType) -> bool {
     matches!(ty, DataType::Timestamp(..) | DataType::Duration(_))
-}
-
-/// The columns a file has, for a message about one it lacks: the first 12 by name, then how
-/// many in all.
-pub(crate) fn column_list<'a>(names: impl ExactSizeIterator<Item = &'a String>) -> String {
-    const SHOWN: usize = 12;
-    let all = names.len();
-    let mut shown: Vec<String> = names.take(SHOWN).map(|h| format!("`{h}`")).collect();
-    if all > SHOWN {
-        shown.push(format!("… {all} in all"));
-    }
-    if shown.is_empty() {
-        "no columns".into()
-    } else {
-        shown.join(", ")
-    }
 }
 
 pub(crate) fn type_error(file: &Path, column: &str, found: &DataType) -> ColumnarError {

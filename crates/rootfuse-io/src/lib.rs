@@ -60,5 +60,5 @@ pub use recording::{
     CsvBlocks, ImuGaps, UNIT_NORM_TOLERANCE, read_csv, read_csv_from, read_csv_in, read_csv_with,
 };
 pub use rootfuse_attitude::Recording;
-pub use table::Dialect;
+pub use table::{Dialect, column_list};
 pub use write::{write_estimates, write_recording, write_recording_with};

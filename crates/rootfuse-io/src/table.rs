@@ -203,22 +203,12 @@ impl<R: Read> Table<R> {
 
     /// The error of a missing column, listing what the header has.
     pub fn missing(&self, column: &'static str) -> ReadError {
-        const SHOWN: usize = 12;
-        let mut found: Vec<String> = self
-            .header
-            .iter()
-            .take(SHOWN)
-            .map(|h| format!("`{h}`"))
-            .collect();
-        if self.header.len() > SHOWN {
-            found.push(format!("… {} in all", self.header.len()));
-        }
         ReadError::MissingColumn {
             place: Place::line(&self.file, 1),
             column,
             found: format!(
                 "{} ({}-separated)",
-                found.join(", "),
+                column_list(self.header.iter()),
                 self.dialect.delimiter_name()
             ),
         }
@@ -350,4 +340,25 @@ pub(crate) fn stem(path: &Path) -> String {
     path.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default()
+}
+
+/// The columns a file has, for a message about one it lacks: the first 12 by name, then how
+/// many in all (`no columns` for none).
+///
+/// ```
+/// let names = ["t", "gx"].map(String::from);
+/// assert_eq!(rootfuse_io::column_list(names.iter()), "`t`, `gx`");
+/// ```
+pub fn column_list<'a>(names: impl ExactSizeIterator<Item = &'a String>) -> String {
+    const SHOWN: usize = 12;
+    let all = names.len();
+    let mut shown: Vec<String> = names.take(SHOWN).map(|h| format!("`{h}`")).collect();
+    if all > SHOWN {
+        shown.push(format!("… {all} in all"));
+    }
+    if shown.is_empty() {
+        "no columns".into()
+    } else {
+        shown.join(", ")
+    }
 }
