@@ -10,8 +10,9 @@
 //! ```
 //!
 //! The flagship filter ([`SqrtEskf`], registry name `flagship`): one sample at a time, gyroscope
-//! in rad/s, accelerometer in m/s² (any unit works: it uses the direction), magnetometer in
-//! any unit, all in the sensor frame; `dt` in seconds since the previous sample.
+//! in rad/s, accelerometer in m/s² (its corrections use the direction, its rest and spike
+//! thresholds m/s²), magnetometer in µT (its direction; the screening limit `max_mag` is in
+//! µT), all in the sensor frame; `dt` in seconds since the previous sample.
 //!
 //! ```
 //! use rootfuse_attitude::prelude::*;

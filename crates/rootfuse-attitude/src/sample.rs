@@ -6,8 +6,8 @@ use rootfuse_lane::Lane;
 /// One synchronous IMU sample in the sensor frame.
 ///
 /// Units: gyroscope rad/s, accelerometer m/s² (specific force: `+g` along sensor-up at rest),
-/// magnetometer any consistent unit (filters use its direction; some use its norm relative
-/// to a learned reference). A 6D sample has no magnetometer: put NaN in `mag` (a 9D filter
+/// magnetometer µT (filters use its direction, some its norm relative to a learned reference;
+/// the screening limit `max_mag`, 1000 by default, is in µT, so a field in nT needs it set). A 6D sample has no magnetometer: put NaN in `mag` (a 9D filter
 /// then skips its magnetometer correction for that sample and counts it).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ImuSample<T> {

@@ -10,7 +10,7 @@
 //! name in any order, numbers (floats; integers such as raw counts or a time in ms, and
 //! decimals, read as `f64`; a dictionary of them; `t` also a timestamp or duration, read in s):
 //! `t` (s, strictly increasing per device),
-//! `gx,gy,gz` (rad/s), `ax,ay,az` (m/s²), optionally `mx,my,mz` (any unit, all three or
+//! `gx,gy,gz` (rad/s), `ax,ay,az` (m/s²), optionally `mx,my,mz` (µT, all three or
 //! none), plus an optional `device` column (integer or string) saying which device a row
 //! belongs to: rows of many devices may interleave in any order; without it the file is one
 //! device named after its stem. Other columns (truth `qw..qz`, `use`) are ignored by

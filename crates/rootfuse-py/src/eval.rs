@@ -4,8 +4,9 @@
 use crate::arrays::{
     DofArg, SeedArg, Steps, dtype_name, matrix, real, same_length, shape_text, type_name, vector,
 };
-use crate::filter::{imu_arrays, recording};
+use crate::filter::imu_arrays;
 use crate::inputs::Inputs;
+use crate::inputs::recording;
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyIOError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;

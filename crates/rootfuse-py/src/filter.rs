@@ -3,6 +3,7 @@
 
 use crate::arrays::{self, DofArg, Steps, same_length, sensor_matrix};
 use crate::inputs::Inputs;
+use crate::unit_warnings::{JUDGE_EVERY, Judged, StreamCheck, deliver, warn_if_most_steps_skipped};
 use numpy::{PyArray1, PyArrayMethods, ndarray::Array2};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::intern;
@@ -10,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use rootfuse_attitude::filters::{ParamKind, Rejections, StateError};
 use rootfuse_attitude::registry::{AnyFilter, FilterSpec};
-use rootfuse_attitude::{Dof, ImuSample, Lane, Mask, OrientationFilter, Recording, Vec3};
+use rootfuse_attitude::{Dof, ImuSample, Lane, Mask, OrientationFilter, Vec3};
 use rootfuse_batch::{Precision, RejectionTotals};
 use std::sync::{Mutex, MutexGuard, PoisonError, TryLockError};
 
@@ -89,39 +90,6 @@ pub fn spec_from(
             .map_err(|e| PyValueError::new_err(format!("dof: {e}")))?;
     }
     Ok(spec)
-}
-
-/// A `UserWarning` where most of a call's steps (ten or more) will be skipped: not finite,
-/// not positive, or beyond `max_dt` (sample times given as `dt`, times in ms). Decided from
-/// the input before the filter runs, so a warning turned into an error leaves the filter as
-/// it was.
-fn warn_if_most_steps_skipped(
-    py: Python<'_>,
-    call: &str,
-    steps: &Steps,
-    n: usize,
-    max_dt: f64,
-) -> PyResult<()> {
-    let steps = steps.borrowed();
-    let skipped = (0..n)
-        .filter(|&i| {
-            let dt = steps.at(i);
-            !(dt > 0.0 && dt <= max_dt)
-        })
-        .count();
-    if n < 10 || 2 * skipped <= n {
-        return Ok(());
-    }
-    let message = format!(
-        "{call}: {skipped} of {n} samples will be skipped for their time step (flag 1): `dt` is the step before each sample in s (sample times go to `t=`), `t` is in s (divide ms by 1000), and a step beyond `max_dt` ({max_dt} s) is a gap"
-    );
-    let message = std::ffi::CString::new(message).unwrap_or_default();
-    PyErr::warn(
-        py,
-        &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-        &message,
-        1,
-    )
 }
 
 /// Lane 0's counters.
@@ -229,7 +197,11 @@ macro_rules! with_state {
 /// ValueError).
 ///
 /// Conventions: quaternions `[w, x, y, z]`, sensor to earth, earth ENU; gyroscope rad/s,
-/// accelerometer m/s² (+g up at rest), magnetometer any consistent unit, time s.
+/// accelerometer m/s² (+g up at rest), magnetometer µT (the filters use the field's
+/// direction; the screening limit `max_mag`, 1000, is in µT), time s. The
+/// first samples of a stream (`update_batch`, `update`) are checked against these units, as
+/// `rootfuse run` checks a file: readings that look like °/s, g, ms or nT give a
+/// `UserWarning` naming the sensor and the unit they fit, once per sensor until `reset()`.
 ///
 /// A Filter is used by one thread at a time: while `update_batch` runs (the GIL released),
 /// any call on the same Filter from another thread is a RuntimeError. Make one Filter per
@@ -243,6 +215,9 @@ pub struct Filter {
     /// The last sample time of the last `update_batch(t=...)`, s: the next call with `t`
     /// continues from it. Locked only while `state` is held.
     last_time: Mutex<Option<f64>>,
+    /// The unit check of the stream of calls (`update_batch`, `update`) since construction or
+    /// `reset()`. Locked only while `state` is held.
+    units: Mutex<StreamCheck>,
 }
 
 /// What a second thread gets instead of pyo3's "Already borrowed".
@@ -256,6 +231,7 @@ impl Filter {
             precision,
             state: Mutex::new(state),
             last_time: Mutex::new(None),
+            units: Mutex::new(StreamCheck::default()),
         }
     }
     fn fresh(spec: &FilterSpec, precision: Precision) -> State {
@@ -281,6 +257,26 @@ impl Filter {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
         }
+    }
+    /// Reads a call's samples into the stream's unit check while it reads, and warns of what
+    /// it finds before the filter runs. The check is updated only when every warning went
+    /// out: one raised as an error leaves it (and the filter) as they were.
+    fn check_units(&self, py: Python<'_>, input: &Inputs<'_>) -> PyResult<()> {
+        let mut units = self.units.lock().unwrap_or_else(PoisonError::into_inner);
+        if units.settled() {
+            return Ok(());
+        }
+        let judged = Judged::of(&self.spec, false);
+        let mut check = units.clone();
+        py.detach(|| check.add_inputs(input, judged.field()));
+        // A call of a few samples (a stream fed one by one) is judged now and then, as
+        // `update` judges, a call of many at once.
+        let every = if input.len >= 50 { 1 } else { JUDGE_EVERY };
+        let findings = check.findings(&judged, every, false);
+        deliver(py, "update_batch", &findings, &mut units)?;
+        check.mark_warned(&findings);
+        *units = check;
+        Ok(())
     }
     fn dof_count(&self) -> Option<u8> {
         self.spec.dof().map(Dof::count)
@@ -452,7 +448,7 @@ impl Filter {
 
     /// Processes whole arrays from the current state, with the GIL released.
     ///
-    /// gyr, acc, mag: `(N, 3)` float32/float64 arrays (rad/s, m/s², any unit); `mag=None`
+    /// gyr, acc, mag: `(N, 3)` float32/float64 arrays (rad/s, m/s², µT); `mag=None`
     /// for 6D data (a 9D filter then skips its magnetometer correction at every sample and
     /// flags it). Exactly one of `dt` (s: a number, or `(N,)` per sample: the step before
     /// each sample) and `t` (s, `(N,)`: the step before sample i is `t[i] − t[i−1]`, before
@@ -471,7 +467,10 @@ impl Filter {
     /// rest, 64 magnetic disturbance. NaN/inf inside the arrays are not errors: that sample
     /// (or correction) is skipped and flagged. Where most steps of a call (ten or more) will
     /// be skipped (not positive or beyond `max_dt`), a `UserWarning` says the likely cause
-    /// (sample times given as `dt`, times in ms) before the filter runs.
+    /// (sample times given as `dt`, times in ms) before the filter runs. Until the stream's
+    /// unit check has decided (at most 200 000 samples; about 40 ns a sample), its samples are
+    /// also read by it, and a sensor whose readings do not fit the units above is named in a
+    /// `UserWarning` before the filter runs.
     #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None, covariance=true))]
     #[allow(clippy::too_many_arguments)]
     fn update_batch<'py>(
@@ -493,12 +492,13 @@ impl Filter {
             .unwrap_or_else(PoisonError::into_inner);
         let (steps, end) = steps.continuing(*last_time);
         let max_dt = self.spec.get("max_dt").unwrap_or(f64::INFINITY);
-        warn_if_most_steps_skipped(py, "update_batch", &steps, n, max_dt)?;
+        warn_if_most_steps_skipped(py, "update_batch", steps.borrowed(), n, max_dt)?;
+        let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
+        self.check_units(py, &input)?;
         *last_time = end;
         drop(last_time);
         let state: &mut State = &mut guard;
         let with_cov = covariance && has_covariance(state);
-        let input = Inputs::new(&gyr, &acc, mag.as_ref(), &steps, n);
         let series = py.detach(|| with_state!(state, f => run_series(f, &input, with_cov)));
         drop(guard);
         let out = PyDict::new(py);
@@ -514,7 +514,7 @@ impl Filter {
         Ok(out)
     }
 
-    /// One sample: gyr, acc (and mag for 9D) as 3 numbers each (rad/s, m/s², any unit), dt
+    /// One sample: gyr, acc (and mag for 9D) as 3 numbers each (rad/s, m/s², µT), dt
     /// the step before it, s. Returns the sample's flags (bits as in `update_batch`); the
     /// state is in `quat`, `bias`, `covariance`. NaN/inf values are skipped and flagged.
     #[pyo3(signature = (gyr, acc, mag=None, *, dt))]
@@ -535,6 +535,20 @@ impl Filter {
             _ => ImuSample::six_d(Vec3::from_f64(g), Vec3::from_f64(a)),
         };
         let mut state = self.lock()?;
+        {
+            let mut units = self.units.lock().unwrap_or_else(PoisonError::into_inner);
+            let judged = Judged::of(&self.spec, false);
+            let field = (judged.field() && mag.is_some_and(|m| !m.is_none())).then_some(s.mag);
+            let max_dt = self.spec.screen_limits().max_dt;
+            units.count_step(dt, max_dt);
+            units.warn_of_first_steps(gyr.py(), "update", max_dt)?;
+            units.add(dt, s.gyr, s.acc, field);
+            let findings = units.findings(&judged, JUDGE_EVERY, false);
+            if let Err(e) = deliver(gyr.py(), "update", &findings, &mut units) {
+                units.judge_again();
+                return Err(e);
+            }
+        }
         *self
             .last_time
             .lock()
@@ -693,6 +707,7 @@ impl Filter {
             .last_time
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = None;
+        *self.units.lock().unwrap_or_else(PoisonError::into_inner) = StreamCheck::default();
         Ok(())
     }
 
@@ -754,33 +769,5 @@ impl<'py> RejectionDicts<'py> {
             (intern!(py, "gated"), r.gated),
             (intern!(py, "mag_disturbed"), r.mag_disturbed),
         ]
-    }
-}
-
-/// A `Recording` from arrays (what the smoother, metrics and writer take).
-pub fn recording(
-    input: &Inputs<'_>,
-    t: Vec<f64>,
-    truth: Option<Vec<f64>>,
-    use_mask: Option<Vec<bool>>,
-) -> Recording {
-    let n = input.len;
-    let v3 = |a: arrays::Floats<'_>| -> Vec<Vec3<f64>> {
-        (0..n)
-            .map(|i| Vec3::new(a.get(3 * i), a.get(3 * i + 1), a.get(3 * i + 2)))
-            .collect()
-    };
-    Recording {
-        name: "python".into(),
-        t,
-        gyr: v3(input.gyr),
-        acc: v3(input.acc),
-        mag: input.mag.map(v3),
-        truth: truth.map(|q| {
-            q.chunks_exact(4)
-                .map(|c| rootfuse_attitude::Quat::new(c[0], c[1], c[2], c[3]))
-                .collect()
-        }),
-        use_mask,
     }
 }

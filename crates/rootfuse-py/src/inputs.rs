@@ -3,7 +3,7 @@
 //! registers) for the batch engine.
 
 use crate::arrays::{self, Steps, StepsRef};
-use rootfuse_attitude::{ImuSample, Lane, Vec3};
+use rootfuse_attitude::{ImuSample, Lane, Recording, Vec3};
 
 /// The per-sample input of one channel over borrowed sensor values (`[x, y, z]` rows, float32
 /// or float64 as given).
@@ -214,5 +214,33 @@ impl rootfuse_batch::ChannelSource for Inputs<'_> {
             }
             source.fill_steps_lane(start, lane, tile);
         }
+    }
+}
+
+/// A `Recording` from arrays (what the smoother, metrics and writer take).
+pub fn recording(
+    input: &Inputs<'_>,
+    t: Vec<f64>,
+    truth: Option<Vec<f64>>,
+    use_mask: Option<Vec<bool>>,
+) -> Recording {
+    let n = input.len;
+    let v3 = |a: arrays::Floats<'_>| -> Vec<Vec3<f64>> {
+        (0..n)
+            .map(|i| Vec3::new(a.get(3 * i), a.get(3 * i + 1), a.get(3 * i + 2)))
+            .collect()
+    };
+    Recording {
+        name: "python".into(),
+        t,
+        gyr: v3(input.gyr),
+        acc: v3(input.acc),
+        mag: input.mag.map(v3),
+        truth: truth.map(|q| {
+            q.chunks_exact(4)
+                .map(|c| rootfuse_attitude::Quat::new(c[0], c[1], c[2], c[3]))
+                .collect()
+        }),
+        use_mask,
     }
 }

@@ -20,6 +20,7 @@ mod many;
 mod registry;
 mod series_arrays;
 mod smooth;
+mod unit_warnings;
 
 use pyo3::prelude::*;
 

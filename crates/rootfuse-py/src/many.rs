@@ -350,7 +350,10 @@ fn final_states<'py>(
 /// Runs many channels of one registered filter through the SIMD batch engine (`f32x8` or
 /// `f64x4` lanes, two vectors interleaved for the small filters, chunks spread over all cores
 /// with the GIL released). Each channel's result equals running it alone through
-/// `Filter(name, ...)` bit for bit.
+/// `Filter(name, ...)` bit for bit. Before any filter runs, four channels (the first, the
+/// last and two between) are checked as `Filter.update_batch` checks a stream: a
+/// `UserWarning` names the channel where most steps would be skipped or the readings look
+/// like °/s, g or nT.
 ///
 /// gyr, acc, mag: `(C, N, 3)` arrays, or lists of `(N_i, 3)` arrays (channels of different
 /// lengths), float32 or float64 (read as they are, without a widening copy); `mag=None` for
@@ -445,6 +448,7 @@ pub fn run_many<'py>(
             len: g.lens[c],
         })
         .collect();
+    warn_of_channels(py, &specs, &sources)?;
     if !series {
         if out.is_some() {
             return Err(PyValueError::new_err(
@@ -490,6 +494,28 @@ pub fn run_many<'py>(
     } else {
         run.into_arrays::<f64>(py, out)
     }
+}
+
+/// Warnings about the input of the channels the unit check reads
+/// ([`checked_channels`](crate::unit_warnings::checked_channels)): most steps skipped (as
+/// `Filter.update_batch` says it; the first channel that shows it), then readings in other
+/// units; before any filter runs.
+fn warn_of_channels(py: Python<'_>, specs: &[FilterSpec], sources: &[Inputs<'_>]) -> PyResult<()> {
+    for c in crate::unit_warnings::checked_channels(sources.len()) {
+        let max_dt = specs[c].screen_limits().max_dt;
+        let call = format!("run_many: channel {c}");
+        let s = &sources[c];
+        // One channel's warning says it for the fleet.
+        if crate::unit_warnings::warn_if_most_steps_skipped(py, &call, s.steps, s.len, max_dt)? {
+            break;
+        }
+    }
+    let findings = py.detach(|| crate::unit_warnings::channel_findings(sources, specs));
+    for (c, f) in &findings {
+        let call = format!("run_many: channel {c}");
+        crate::unit_warnings::warn_findings(py, &call, [f])?;
+    }
+    Ok(())
 }
 
 /// Refuses `out` arrays that may share memory with an input or with each other

@@ -1,13 +1,14 @@
 //! The offline smoother (`rootfuse_attitude::smooth`) on NumPy arrays.
 
 use crate::arrays::{DofArg, Steps};
-use crate::filter::{imu_arrays, recording, spec_from};
+use crate::filter::{imu_arrays, spec_from};
 use crate::inputs::Inputs;
+use crate::inputs::recording;
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rootfuse_attitude::units::{Sensor, UnitCheck, Units};
+use rootfuse_attitude::units::{UnitCheck, Units};
 
 /// Offline forward-backward smoothing of one recording (f64), for filters with an attitude
 /// covariance (`sqrt-eskf`/`flagship`, `ekf`).
@@ -50,21 +51,9 @@ pub fn smooth<'py>(
     let rec = recording(&input, steps.times(n), None, None);
     let nine_d = spec.uses_magnetometer();
     let findings = py.detach(|| UnitCheck::of_recording(&rec, &Units::default()));
-    for f in findings
-        .iter()
-        .filter(|f| nine_d || f.sensor != Sensor::Magnetometer)
-    {
-        let advice = if f.dead {
-            format!("smooth: {f}")
-        } else {
-            format!(
-                "smooth: {f}: the arrays must be in s, rad/s, m/s2 and uT; convert this sensor's ({}) first",
-                f.declaration()
-            )
-        };
-        let message = std::ffi::CString::new(advice).unwrap_or_default();
-        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
-    }
+    let judged = crate::unit_warnings::Judged::of(&spec, true);
+    let findings = findings.iter().filter(|f| judged.keeps(f));
+    crate::unit_warnings::warn_findings(py, "smooth", findings)?;
     let result = py.detach(|| rootfuse_attitude::smooth::smooth_spec(&rec, &spec, nine_d));
     let smoothed = result.map_err(|e| PyValueError::new_err(format!("name: {e}")))?;
     let q: Vec<f64> = smoothed

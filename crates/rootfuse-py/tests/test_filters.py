@@ -2,6 +2,7 @@
 output, which writes shortest round-trip numbers), and the state API works."""
 
 import csv
+import re
 import subprocess
 
 import numpy as np
@@ -101,6 +102,125 @@ def test_smooth_names_arrays_in_other_units():
         rf.smooth("flagship", rec["gyr"], rec["acc"], rec["mag"], t=rec["t"])
     with pytest.warns(UserWarning, match=r"smooth: gyroscope: .*look like deg/s.*convert this sensor's \(gyro=deg/s\)"):
         rf.smooth("flagship", np.rad2deg(rec["gyr"]), rec["acc"], rec["mag"], t=rec["t"])
+
+
+def test_filter_streams_name_arrays_in_other_units():
+    """update_batch and update check a stream's first samples as smooth checks its arrays: a
+    gyroscope in deg/s, an accelerometer in g or a field in nT ran quietly (the field in nT
+    was refused at every sample by max_mag). One warning per sensor and stream, fed in
+    chunks or whole; none for arrays in the filters' units; reset() starts a new stream."""
+    import warnings
+
+    rec = rf.simulate("slow-rotation", seed=3, duration_s=60.0)
+    g, a, m, t = rec["gyr"], rec["acc"], rec["mag"], rec["t"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rf.Filter("flagship").update_batch(g, a, m, t=t)
+        f = rf.Filter("mahony")
+        for i in range(600):
+            f.update(g[i], a[i], m[i], dt=t[1] - t[0])
+    f = rf.Filter("flagship")
+    with pytest.warns(UserWarning) as seen:
+        for chunk in np.array_split(np.arange(len(t)), 6):
+            f.update_batch(np.rad2deg(g[chunk]), a[chunk], m[chunk], t=t[chunk])
+    messages = [str(w.message) for w in seen]
+    assert len(messages) == 1, messages
+    assert re.search(r"update_batch: gyroscope: .*look like deg/s.*convert this sensor's \(gyro=deg/s\)", messages[0])
+    f.reset()
+    with pytest.warns(UserWarning, match=r"update_batch: magnetometer: .*look like nT"):
+        f.update_batch(g, a, m * 1000, t=t)
+    assert f.rejections["mag"] == len(t)
+    f = rf.Filter("mahony")
+    with pytest.warns(UserWarning) as seen:
+        for i in range(600):
+            f.update(g[i], a[i] / 9.80665, m[i], dt=t[1] - t[0])
+    messages = [str(w.message) for w in seen]
+    assert len(messages) == 1 and re.search(r"update: accelerometer: .*look like g", messages[0]), messages
+    # A 6D filter never reads the field, and a max_mag set for nT takes it: nothing to say
+    # about its unit. A first chunk without a usable reading is no dead sensor; a slow rate
+    # (2 Hz, within max_dt) is no time in ms.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rf.Filter("flagship", dof=6).update_batch(g, a, m * 1000, t=t)
+        f = rf.Filter("flagship", max_mag=1e6)
+        f.update_batch(g, a, m * 1000, t=t)
+        assert f.rejections["mag"] == 0
+        f = rf.Filter("flagship")
+        nan = np.full((100, 3), np.nan)
+        f.update_batch(nan, nan, nan, t=t[:100])
+        f.update_batch(g[100:], a[100:], m[100:], t=t[100:])
+        rf.Filter("mahony").update_batch(g[::50], a[::50], m[::50], t=t[::50])
+
+
+def test_unit_warnings_raised_as_errors_leave_the_stream_as_it_was():
+    """A unit warning turned into an error leaves the filter and its check as they were: the
+    same call raises it again (a call long enough to end the check: 12 000 samples), and the
+    warnings of a call are delivered in turn (one raised as an error stops the rest, and
+    those delivered are not repeated)."""
+    import warnings
+
+    rec = rf.simulate("slow-rotation", seed=3, duration_s=120.0)
+    g, a, m, t = np.rad2deg(rec["gyr"]), rec["acc"], rec["mag"] * 1000, rec["t"]
+    f = rf.Filter("flagship")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for _ in range(2):
+            with pytest.raises(UserWarning, match="magnetometer"):
+                f.update_batch(g, a, m, t=t)
+            assert f.rejections["mag"] == 0
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        warnings.filterwarnings("error", message="update_batch: gyroscope")
+        with pytest.raises(UserWarning, match="update_batch: gyroscope"):
+            f.update_batch(g, a, m, t=t)
+    assert [str(w.message).split(":")[1] for w in seen] == [" magnetometer"]
+    with pytest.warns(UserWarning) as seen:
+        f.update_batch(g, a, m, t=t)
+    assert [str(w.message).split(":")[1] for w in seen] == [" gyroscope"]
+    assert f.rejections["mag"] > len(t) / 2  # the filter ran once: a field in nT is refused
+    f = rf.Filter("mahony")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="update: magnetometer"):
+            for i in range(600):
+                f.update(rec["gyr"][i], a[i], m[i], dt=t[1] - t[0])
+        with pytest.raises(UserWarning, match="update: magnetometer"):
+            f.update(rec["gyr"][i], a[i], m[i], dt=t[1] - t[0])
+    # update() has no call of many steps to judge: its first 256 say it.
+    f = rf.Filter("mahony")
+    with pytest.warns(UserWarning, match=r"update: 256 of 256 samples will be skipped .*divide ms by 1000"):
+        for i in range(300):
+            f.update(rec["gyr"][i], rec["acc"][i], rec["mag"][i], dt=10.0)
+
+
+def test_run_many_names_channels_in_other_units():
+    """run_many checks the first, the last and two channels between: a fleet whose last
+    channel is in g is named with that channel's index."""
+    import warnings
+
+    recs = [rf.simulate("slow-rotation", seed=s, duration_s=20.0) for s in range(5)]
+    g = np.stack([r["gyr"] for r in recs])
+    a = np.stack([r["acc"] for r in recs])
+    t = np.stack([r["t"] for r in recs])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rf.run_many("mahony", g, a, t=t, dof=6, series=False)
+    a[-1] /= 9.80665
+    with pytest.warns(UserWarning, match=r"run_many: channel 4: accelerometer: .*look like g"):
+        rf.run_many("mahony", g, a, t=t, dof=6, series=False)
+    # Each channel is judged by its own filter: a 6D first channel does not hide a 9D
+    # channel's field in nT; steps in ms are named as update_batch names them.
+    a[-1] *= 9.80665
+    m = np.stack([r["mag"] for r in recs]) * 1000
+    params = [{"dof": 6}] + [{}] * 4
+    with pytest.warns(UserWarning, match=r"run_many: channel 1: magnetometer: .*look like nT"):
+        rf.run_many("mahony", g, a, m, t=t, channel_params=params, series=False)
+    with pytest.warns(UserWarning, match=r"run_many: channel 0: .*skipped for their time step.*divide ms by 1000"):
+        rf.run_many("mahony", g, a, t=t * 1000, dof=6, series=False)
+    # A channel is whole: a dead sensor is named however short it is.
+    a[0] = 0.0
+    with pytest.warns(UserWarning, match=r"run_many: channel 0: accelerometer: every reading checked \(2000\) is zero"):
+        rf.run_many("mahony", g, a, t=t, dof=6, series=False)
 
 
 def test_parameters_reach_the_filter(cli, tmp_path):

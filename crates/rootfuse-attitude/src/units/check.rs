@@ -1,90 +1,8 @@
 //! The units a recording's data suggest ([`UnitCheck`]): magnitude histograms per sensor,
 //! a time-step check and, for the gyroscope, a test against the accelerometer's tilt.
 
+use super::histogram::LogHistogram;
 use super::*;
-
-/// A magnitude's distribution in bins of a tenth of a decade from 1e-9 to 1e12, plus the
-/// readings that were zero or not finite: enough to tell units apart (they differ by factors
-/// of 10 to 1e9) in constant memory per channel.
-#[derive(Clone, Debug)]
-struct LogHistogram {
-    bins: Vec<u32>,
-    zero: u64,
-    non_finite: u64,
-}
-
-const DECADE_BINS: f64 = 10.0;
-const LOG_MIN: f64 = -9.0;
-const LOG_MAX: f64 = 12.0;
-const BINS: usize = ((LOG_MAX - LOG_MIN) * DECADE_BINS) as usize;
-
-/// The bins' lower edges, `10^(LOG_MIN + b/DECADE_BINS)` for `b = 0..=BINS`.
-fn bin_edges() -> &'static [f64; BINS + 1] {
-    static EDGES: std::sync::OnceLock<[f64; BINS + 1]> = std::sync::OnceLock::new();
-    EDGES
-        .get_or_init(|| core::array::from_fn(|b| libm::pow(10.0, LOG_MIN + b as f64 / DECADE_BINS)))
-}
-
-/// The bin of a finite non-zero `x`: `⌊(log10|x| − LOG_MIN)·DECADE_BINS⌋`, clamped to the
-/// bins, found without a logarithm (a check reads four magnitudes per sample, and the
-/// logarithms were a twentieth of `rootfuse run` on a fleet): `|x|`'s binary exponent gives a
-/// bin at or below it, and the edges the rest (at most five steps). The same bin as the
-/// logarithm's except within rounding of an edge.
-fn bin_of(x: f64) -> usize {
-    let x = x.abs();
-    let edges = bin_edges();
-    // |x| ≥ 2^e, so log10|x| ≥ e·log10(2); one bin lower against the product's rounding
-    // (a subnormal's e = −1023 clamps to bin 0).
-    let e = ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023;
-    let below = ((f64::from(e) * core::f64::consts::LOG10_2 - LOG_MIN) * DECADE_BINS).floor() - 1.0;
-    let mut b = below.clamp(0.0, (BINS - 1) as f64) as usize;
-    while b + 1 < BINS && x >= edges[b + 1] {
-        b += 1;
-    }
-    b
-}
-
-impl LogHistogram {
-    fn new() -> Self {
-        Self {
-            bins: std::vec![0; BINS],
-            zero: 0,
-            non_finite: 0,
-        }
-    }
-
-    fn add(&mut self, x: f64) {
-        if !x.is_finite() {
-            self.non_finite += 1;
-        } else if x == 0.0 {
-            self.zero += 1;
-        } else {
-            let b = bin_of(x);
-            self.bins[b] = self.bins[b].saturating_add(1);
-        }
-    }
-
-    fn count(&self) -> u64 {
-        self.bins.iter().map(|&c| u64::from(c)).sum()
-    }
-
-    /// The `q` quantile (0..1) of the non-zero finite values, at the centre of its bin.
-    fn quantile(&self, q: f64) -> Option<f64> {
-        let n = self.count();
-        if n == 0 {
-            return None;
-        }
-        let rank = (q * (n - 1) as f64).round() as u64;
-        let mut seen = 0u64;
-        for (b, &c) in self.bins.iter().enumerate() {
-            seen += u64::from(c);
-            if seen > rank {
-                return Some(libm::pow(10.0, LOG_MIN + (b as f64 + 0.5) / DECADE_BINS));
-            }
-        }
-        None
-    }
-}
 
 /// The ranges in which a sensor's median magnitude is plausible, in the filters' units.
 fn plausible(sensor: Sensor) -> (f64, f64) {
@@ -208,7 +126,10 @@ impl TiltTest {
     /// (specific force at rest, or the magnetic field).
     fn add(&mut self, dt: f64, gyr: Vec3<f64>, acc: Vec3<f64>) {
         let turn = gyr * dt;
-        if !(acc.norm().is_finite() && turn.norm().is_finite()) {
+        // A squared length that overflows is not finite either (a turn beyond it would make
+        // every later prediction NaN).
+        let finite = |v: Vec3<f64>| v.dot(v).is_finite();
+        if !(finite(acc) && finite(turn)) {
             self.filled = 0;
             self.start = None;
             return;
@@ -226,7 +147,7 @@ impl TiltTest {
             .fold(Vec3::new(0.0, 0.0, 0.0), |s, r| s + r.0);
         let a = mean.norm();
         let turn = self.ring[(self.filled - 1 - SMOOTH / 2) % SMOOTH].1;
-        if a.is_nan() || a <= 0.0 {
+        if !(a.is_finite() && a > 0.0) {
             self.start = None;
             return;
         }
@@ -286,15 +207,23 @@ impl TiltTest {
 }
 
 /// `u` turned as a direction fixed in the earth turns in the sensor frame while the sensor
-/// turns by the rotation vector `theta` (rad): by `−theta` (Rodrigues).
+/// turns by the rotation vector `theta` (rad): by `−theta` (Rodrigues,
+/// `u·cos φ + (u × θ)·sin φ/φ + θ·(θ·u)·(1 − cos φ)/φ²`). Below 0.01 rad (one sample's turn
+/// in the right unit) the two ratios come from their series through `φ⁴`, whose next terms
+/// are below rounding there: a few products instead of a `sincos`, a square root and two
+/// divisions at every sample of every check.
 fn turned(u: Vec3<f64>, theta: Vec3<f64>) -> Vec3<f64> {
-    let phi = theta.norm();
-    if phi < 1e-12 {
-        return u + u.cross(theta);
-    }
-    let k = theta * (1.0 / phi);
-    let (sin, cos) = libm::sincos(phi);
-    u * cos + u.cross(k) * sin + k * (k.dot(u) * (1.0 - cos))
+    let phi2 = theta.dot(theta);
+    let (cos, sinc, versc) = if phi2 < 1e-4 {
+        let sinc = 1.0 - phi2 * (1.0 / 6.0) * (1.0 - phi2 * (1.0 / 20.0));
+        let versc = 0.5 - phi2 * (1.0 / 24.0) * (1.0 - phi2 * (1.0 / 30.0));
+        (1.0 - phi2 * versc, sinc, versc)
+    } else {
+        let phi = libm::sqrt(phi2);
+        let (sin, cos) = libm::sincos(phi);
+        (cos, sin / phi, (1.0 - cos) / phi2)
+    };
+    u * cos + u.cross(theta) * sinc + theta * (theta.dot(u) * versc)
 }
 
 /// The angle between two unit vectors, rad.
@@ -422,6 +351,12 @@ impl UnitCheck {
     /// Samples added (at most [`CHECK_SAMPLES`]; fewer once the check has decided).
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Whether [`add`](Self::add) still reads samples: `false` once the check has decided or
+    /// read [`CHECK_SAMPLES`], so that a caller feeding a stream can stop reading its input.
+    pub fn wants_more(&self) -> bool {
+        !self.decided && self.samples < CHECK_SAMPLES
     }
 
     /// The unit `sensor`'s readings fit, when the data decide it: the declared one when its
@@ -731,38 +666,25 @@ mod tests {
         );
     }
 
-    /// The bin found from the exponent and the edges is the logarithm's, over every decade
-    /// and beyond both ends, except within rounding of an edge.
+    /// The small-angle series gives Rodrigues' formula from `sincos` to rounding, on either
+    /// side of where it takes over, and a turn keeps the direction's length.
     #[test]
-    fn bins_without_a_logarithm_are_the_logarithms() {
-        let mut x = 1e-12_f64;
-        let mut checked = 0;
-        while x < 1e15 {
-            let log = ((libm::log10(x) - LOG_MIN) * DECADE_BINS).floor();
-            let expected = log.clamp(0.0, (BINS - 1) as f64) as usize;
-            let position = (libm::log10(x) - LOG_MIN) * DECADE_BINS;
-            if (position - position.round()).abs() > 1e-9 {
-                assert_eq!(bin_of(x), expected, "{x}");
-                assert_eq!(bin_of(-x), expected, "{x}");
-                checked += 1;
+    fn small_turns_by_their_series_are_rodrigues_turns() {
+        let exact = |u: Vec3<f64>, theta: Vec3<f64>| {
+            let phi = theta.norm();
+            let k = theta * (1.0 / phi);
+            let (sin, cos) = libm::sincos(phi);
+            u * cos + u.cross(k) * sin + k * (k.dot(u) * (1.0 - cos))
+        };
+        let u = Vec3::new(0.48, -0.6, 0.64);
+        for phi in [1e-9, 1e-5, 3e-3, 9.999e-3, 1.0001e-2, 0.3, 2.0] {
+            for axis in [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.0, -0.8)] {
+                let (a, b) = (turned(u, axis * phi), exact(u, axis * phi));
+                assert!((a - b).norm() < 4e-16, "{phi}: {:e}", (a - b).norm());
+                assert!((a.norm() - 1.0).abs() < 4e-16, "{phi}");
             }
-            x *= 1.0137;
         }
-        assert!(checked > 3000, "{checked}");
-        assert_eq!(bin_of(f64::MIN_POSITIVE / 4.0), 0);
-        assert_eq!(bin_of(f64::MAX), BINS - 1);
-    }
-
-    #[test]
-    fn histogram_quantiles_are_within_a_bin() {
-        let mut h = LogHistogram::new();
-        for i in 1..=1001 {
-            h.add(i as f64);
-        }
-        let median = h.quantile(0.5).unwrap();
-        assert!((median / 501.0 - 1.0).abs() < 0.13, "{median}");
-        h.add(0.0);
-        h.add(f64::NAN);
-        assert_eq!((h.count(), h.zero, h.non_finite), (1001, 1, 1));
+        // Turning about the direction itself leaves it.
+        assert!((turned(u, u * 1e-3) - u).norm() < 2e-16);
     }
 }

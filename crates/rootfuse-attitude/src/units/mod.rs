@@ -445,4 +445,5 @@ impl fmt::Display for Units {
 
 // What the data suggest: magnitude histograms, the tilt test, findings.
 mod check;
+mod histogram;
 pub use check::{CHECK_SAMPLES, DECIDED_SAMPLES, MAX_PLAUSIBLE_RATE, UnitCheck, UnitFinding};

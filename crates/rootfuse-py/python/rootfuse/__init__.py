@@ -3,7 +3,8 @@ recursive and dense least squares, from NumPy. Every function calls the Rust lib
 (``crates/rootfuse-py``); nothing is reimplemented in Python.
 
 Conventions: quaternions ``[w, x, y, z]``, sensor to earth, earth frame ENU; gyroscope rad/s,
-accelerometer m/s² (+g up at rest), magnetometer in any consistent unit, time in seconds.
+accelerometer m/s² (+g up at rest), magnetometer in µT, time in seconds
+(arrays that look like °/s, g, ms or nT are named in a ``UserWarning``).
 Flags per sample (uint8): 1 dt, 2 gyroscope (whole sample skipped), 4 accelerometer,
 8 magnetometer (correction skipped), 16 gated by the filter, 32 at rest, 64 magnetic
 disturbance.

@@ -1,6 +1,6 @@
 """Type stubs of the extension module ``rootfuse._rootfuse`` (re-exported by ``rootfuse``).
 
-Units: gyroscope rad/s, accelerometer m/s², magnetometer any consistent unit, time s,
+Units: gyroscope rad/s, accelerometer m/s², magnetometer µT, time s,
 quaternions ``[w, x, y, z]`` sensor to earth (ENU), covariances rad², errors degrees.
 
 Checked against the built extension by ``python -m mypy.stubtest rootfuse``
@@ -160,7 +160,9 @@ class Filter:
         rad/s, ``covariance`` (N, 3, 3) rad² (filters that have one, unless
         ``covariance=False``), ``flags`` (N,) uint8. A call with ``t`` after a call with ``t``
         continues its times (a stream fed in chunks); a ``UserWarning`` where most steps
-        would be skipped (sample times given as ``dt``, times in ms)."""
+        would be skipped (sample times given as ``dt``, times in ms), and where the stream's
+        first samples (until its unit check decides) look like deg/s, g or nT, once per
+        sensor until ``reset()``."""
     def update(
         self,
         gyr: Union[Sequence[float], _FloatArray],
@@ -169,7 +171,8 @@ class Filter:
         *,
         dt: float,
     ) -> int:
-        """One sample (rad/s, m/s², any unit; dt s); returns its flags."""
+        """One sample (rad/s, m/s², µT; dt s); returns its flags. The stream's unit check
+        reads it too, as in ``update_batch``."""
     @property
     def quat(self) -> _F64:
         """Orientation [w, x, y, z], (4,)."""
@@ -194,7 +197,8 @@ class Filter:
     def forget_field_reference(self) -> None:
         """The magnetometer readings change from the next sample on because a new calibration is applied: the next usable reading becomes the field reference, pointing north (sqrt-eskf 9D; nothing for the other filters)."""
     def reset(self) -> None:
-        """Back to the freshly built state (same parameters and precision)."""
+        """Back to the freshly built state (same parameters and precision); a new stream
+        for the unit check."""
 
 def filters() -> List[Dict[str, Any]]:
     """Every registered filter: name, description, params (name, kind, default, unit, min,
@@ -239,7 +243,9 @@ def run_many(
     """(C, N, 3) arrays through the SIMD batch engine on all cores (f32 by default); each
     channel equals a ``Filter`` run bit for bit. ``dtype="float32"``: float32 series (half
     the memory; the same values with ``precision="f32"``). ``out``: a dict of arrays of the
-    result's keys and shapes to write into (reused from call to call), returned."""
+    result's keys and shapes to write into (reused from call to call), returned. The first,
+    the last and two channels between are checked for their units and steps before any
+    filter runs (a ``UserWarning`` naming the channel)."""
 
 @overload
 def run_many(

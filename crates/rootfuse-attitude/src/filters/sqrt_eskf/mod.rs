@@ -608,8 +608,9 @@ impl<T: Lane> State<T> {
 /// - gyroscope in rad/s;
 /// - accelerometer in m/s²: the corrections use its direction only, but the thresholds
 ///   `rest_acc`, `acc_spike` and `max_acc` are in m/s²;
-/// - magnetometer in any unit (9D only; its norm is compared relative to a learned reference,
-///   only `max_mag` is absolute); a 6D sample carries none;
+/// - magnetometer in µT (9D only; its norm is compared relative to a learned reference, only
+///   `max_mag` is absolute: 1000, in µT, refuses a field in nT unless it is set); a 6D sample
+///   carries none;
 /// - `dt`, seconds since the previous sample (may vary from sample to sample).
 ///
 /// Outputs:
