@@ -468,7 +468,7 @@ impl Filter {
     /// (or correction) is skipped and flagged. Where most steps of a call (ten or more) will
     /// be skipped (not positive or beyond `max_dt`), a `UserWarning` says the likely cause
     /// (sample times given as `dt`, times in ms) before the filter runs. Until the stream's
-    /// unit check has decided (at most 200 000 samples; about 40 ns a sample), its samples are
+    /// unit check has decided (at most 200 000 samples; about 100 ns a sample it reads), its samples are
     /// also read by it, and a sensor whose readings do not fit the units above is named in a
     /// `UserWarning` before the filter runs.
     #[pyo3(signature = (gyr, acc, mag=None, dt=None, *, t=None, covariance=true))]

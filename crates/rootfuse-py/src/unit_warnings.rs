@@ -54,7 +54,7 @@ fn step_usable(dt: f64, max_dt: f64) -> bool {
 pub struct Judged {
     /// The time step's unit (off where the steps' own warning covers it: a step in ms is
     /// beyond `max_dt`, where a slow but real rate, 2 Hz, is not).
-    pub time: bool,
+    time: bool,
     acc: bool,
     /// The field's: a 9D filter at the default `max_mag`, which refuses a field in nT.
     mag: bool,
